@@ -1,0 +1,56 @@
+"""The `magna` command: one entry point, one subcommand per capability.
+
+Each subcommand is a module exposing `HELP` (one line), `add_arguments(parser)`
+and `run(args) -> int`. Modules are imported when the parser is built, so they
+keep heavy imports (torch, pybullet, rospy) inside `run`.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+# Subcommands that exist in this build, in the order `magna --help` lists them.
+# Later capabilities (world, mission, run, replay, learn, voice) add their line here.
+COMMANDS: list[tuple[str, str]] = [
+    ("doctor", "magna_master.doctor"),
+]
+
+
+class UsageError(Exception):
+    """Bad input from the user: printed as `magna: <message>`, exit status 2."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="magna",
+        description="MAGNA: define, simulate, fly and learn from cooperative multi-UAV missions.",
+        epilog="Run 'magna COMMAND --help' for the options of one command.",
+    )
+    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", title="commands")
+    for name, module_name in COMMANDS:
+        module = importlib.import_module(module_name)
+        sub = subparsers.add_parser(name, help=module.HELP, description=module.HELP)
+        module.add_arguments(sub)
+        sub.set_defaults(_run=module.run)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "_run", None):
+        parser.print_help()
+        return 2
+    try:
+        return int(args._run(args) or 0)
+    except UsageError as error:
+        print(f"magna {args.command}: {error}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"magna {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,205 @@
+"""`magna doctor`: check that this machine can run MAGNA, and prove it on a live ROS graph.
+
+Each check returns a `CheckResult`; the live check starts a private master on a
+free port, serves the UAL take_off service and publishes UAL states against it,
+and measures the round trips. Nothing outside this process and its master is
+touched.
+"""
+from __future__ import annotations
+
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import dataclass
+from importlib import metadata
+from pathlib import Path
+
+from magna_master.workspace import Workspace
+
+HELP = "check the installation (packages, venv, build, message API) and run a live ROS round trip"
+
+# The checksums of GRVC UAL v3: real UAL servers and clients accept only these.
+GRVC_UAL_MD5 = {
+    "msg/State": "533576484916e98b63315c3434a12ab9",
+    "srv/TakeOff": "92f7691c5527d6fb3cc35d20a69e7778",
+    "srv/Land": "c37d0c321494079f6ac6aae0680a10e1",
+    "srv/GoToWaypoint": "1b4a030ed9ba0e5a2761567aa99a96b7",
+    "srv/GoToWaypointGeo": "a636a108541a3b824065d8407258fbe8",
+    "srv/SetHome": "27f767d7f04b6ba462fa116e03c0b202",
+}
+
+
+@dataclass
+class CheckResult:
+    name: str
+    ok: bool
+    detail: str
+    fix: str = ""
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("--no-live", action="store_true",
+                        help="skip the live ROS round trip (no master is started)")
+    parser.add_argument("--round-trips", type=int, default=200, metavar="N",
+                        help="service calls and messages in the live check (default: %(default)s)")
+
+
+def check_apt(workspace: Workspace) -> CheckResult:
+    wanted = workspace.apt_packages()
+    out = subprocess.run(["dpkg-query", "-W", "-f=${Package} ${db:Status-Abbrev}\n", *wanted],
+                         capture_output=True, text=True)
+    installed = {line.split()[0] for line in out.stdout.splitlines() if line.split()[1:2] == ["ii"]}
+    missing = [name for name in wanted if name not in installed]
+    if missing:
+        return CheckResult("Debian packages", False, f"missing: {' '.join(missing)}", "make setup")
+    return CheckResult("Debian packages", True, f"{len(wanted)} installed")
+
+
+def _pinned_requirements(path: Path) -> dict[str, str]:
+    pins = {}
+    for line in path.read_text().splitlines():
+        line = line.split("#", 1)[0].strip()
+        if "==" in line:
+            name, version = line.split("==", 1)
+            pins[name.strip()] = version.strip()
+    return pins
+
+
+def check_venv(workspace: Workspace) -> CheckResult:
+    if Path(sys.prefix).resolve() != (workspace.root / ".venv").resolve():
+        return CheckResult("Python venv", False, f"running {sys.executable}, not the workspace venv",
+                           "use ./magna (or make setup)")
+    wrong = []
+    pins = _pinned_requirements(workspace.root / "requirements.txt")
+    for name, version in pins.items():
+        try:
+            found = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            wrong.append(f"{name} missing")
+            continue
+        if found.split("+", 1)[0] != version.split("+", 1)[0]:
+            wrong.append(f"{name} {found} != {version}")
+    if wrong:
+        return CheckResult("Python venv", False, "; ".join(wrong), "make setup")
+    return CheckResult("Python venv", True, f"{len(pins)} pinned packages, torch {metadata.version('torch')}")
+
+
+def check_build(workspace: Workspace) -> CheckResult:
+    if not workspace.devel_setup.exists():
+        return CheckResult("catkin build", False, "devel/setup.bash is missing", "make setup")
+    try:
+        import magna_msgs.msg  # noqa: F401
+        import magna_msgs.srv  # noqa: F401
+        import uav_abstraction_layer.msg  # noqa: F401
+    except ImportError as error:
+        return CheckResult("catkin build", False, f"generated messages not importable ({error})",
+                           "make setup, then run through ./magna")
+    return CheckResult("catkin build", True, "messages of uav_abstraction_layer and magna_msgs import")
+
+
+def check_ual_checksums() -> CheckResult:
+    import importlib
+    mismatched = []
+    for kind_and_name, expected in GRVC_UAL_MD5.items():
+        kind, name = kind_and_name.split("/")
+        module = importlib.import_module(f"uav_abstraction_layer.{kind}")
+        actual = getattr(module, name)._md5sum
+        if actual != expected:
+            mismatched.append(f"{name} {actual}")
+    if mismatched:
+        return CheckResult("UAL v3 checksums", False, "differ from GRVC's: " + ", ".join(mismatched),
+                           "restore src/uav_abstraction_layer/{msg,srv} to the UAL v3 definitions")
+    return CheckResult("UAL v3 checksums", True, f"{len(GRVC_UAL_MD5)} types match GRVC UAL v3")
+
+
+def check_live_graph(round_trips: int) -> CheckResult:
+    """A private master, a UAL take_off service and a UAL state topic, timed."""
+    from magna_master.ros_master import RosMaster
+
+    with RosMaster() as master:
+        os.environ.update(master.env())
+        import rospy
+        from uav_abstraction_layer.msg import State
+        from uav_abstraction_layer.srv import TakeOff, TakeOffResponse
+
+        rospy.init_node("magna_doctor", anonymous=True, disable_signals=True)
+        try:
+            heights = []
+            service = rospy.Service("/uav_1/ual/take_off", TakeOff,
+                                    lambda req: heights.append(req.height) or TakeOffResponse())
+            received = []
+            got_all = threading.Event()
+
+            def on_state(msg):
+                received.append((time.perf_counter(), msg.state))
+                if len(received) >= round_trips:
+                    got_all.set()
+
+            subscriber = rospy.Subscriber("/uav_1/ual/state", State, on_state, queue_size=round_trips)
+            publisher = rospy.Publisher("/uav_1/ual/state", State, queue_size=round_trips)
+            rospy.wait_for_service("/uav_1/ual/take_off", timeout=10)
+            take_off = rospy.ServiceProxy("/uav_1/ual/take_off", TakeOff, persistent=True)
+            call_ms = []
+            for i in range(round_trips):
+                start = time.perf_counter()
+                take_off(height=float(i), blocking=True)
+                call_ms.append((time.perf_counter() - start) * 1e3)
+            take_off.close()
+
+            deadline = time.monotonic() + 10
+            while publisher.get_num_connections() == 0 and time.monotonic() < deadline:
+                time.sleep(0.01)
+            sent = []
+            for _ in range(round_trips):
+                sent.append(time.perf_counter())
+                publisher.publish(State(state=State.FLYING_AUTO))
+                time.sleep(0.001)
+            got_all.wait(timeout=10)
+            service.shutdown()
+            subscriber.unregister()
+            publisher.unregister()
+        finally:
+            rospy.signal_shutdown("magna doctor done")
+
+    if heights != [float(i) for i in range(round_trips)]:
+        return CheckResult("live ROS graph", False, f"take_off served {len(heights)}/{round_trips} calls in order",
+                           "see ~/.ros/log for the node's log")
+    if len(received) < round_trips or any(state != State.FLYING_AUTO for _, state in received):
+        return CheckResult("live ROS graph", False, f"state topic delivered {len(received)}/{round_trips}",
+                           "see ~/.ros/log for the node's log")
+    latencies = [(got - put) * 1e3 for (got, _), put in zip(received[:round_trips], sent, strict=True)]
+    return CheckResult(
+        "live ROS graph", True,
+        f"master :{master.port}, take_off p50 {statistics.median(call_ms):.2f} ms, "
+        f"state topic p50 {statistics.median(latencies):.2f} ms ({round_trips} each)")
+
+
+def run(args) -> int:
+    workspace = Workspace.locate()
+    checks = [lambda: check_apt(workspace), lambda: check_venv(workspace), lambda: check_build(workspace)]
+    results: list[CheckResult] = []
+    for check in checks:
+        results.append(check())
+        _print(results[-1])
+    if results[-1].ok:
+        results.append(check_ual_checksums())
+        _print(results[-1])
+        if not args.no_live:
+            if shutil.which("rosmaster") is None:
+                results.append(CheckResult("live ROS graph", False, "rosmaster is not on PATH", "make setup"))
+            else:
+                results.append(check_live_graph(args.round_trips))
+            _print(results[-1])
+    failed = [r for r in results if not r.ok]
+    print(f"\n{len(results) - len(failed)} of {len(results)} checks passed"
+          + ("" if not failed else "; fix: " + ", ".join(sorted({r.fix for r in failed if r.fix}))))
+    return 1 if failed else 0
+
+
+def _print(result: CheckResult) -> None:
+    mark = "ok  " if result.ok else "FAIL"
+    print(f"[{mark}] {result.name:<18} {result.detail}", flush=True)

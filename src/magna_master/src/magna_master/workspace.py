@@ -1,0 +1,63 @@
+"""Where the MAGNA workspace is, and what of it is set up."""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+
+class WorkspaceNotFound(RuntimeError):
+    pass
+
+
+def _looks_like_root(path: Path) -> bool:
+    return (path / "magna").is_file() and (path / "src" / "magna_master").is_dir()
+
+
+def find_root(start: Path | None = None) -> Path:
+    """The repository root: $MAGNA_ROOT, else the clone this module lives in, else a parent of `start`."""
+    env_root = os.environ.get("MAGNA_ROOT")
+    if env_root and _looks_like_root(Path(env_root)):
+        return Path(env_root).resolve()
+    candidates = [Path(__file__).resolve()]
+    candidates.append((start or Path.cwd()).resolve())
+    for candidate in candidates:
+        for parent in [candidate, *candidate.parents]:
+            if _looks_like_root(parent):
+                return parent
+    raise WorkspaceNotFound(
+        "cannot find the MAGNA workspace: run magna from a clone, or set MAGNA_ROOT to the repository root"
+    )
+
+
+@dataclass(frozen=True)
+class Workspace:
+    root: Path
+
+    @classmethod
+    def locate(cls) -> Workspace:
+        return cls(find_root())
+
+    @property
+    def venv_python(self) -> Path:
+        return self.root / ".venv" / "bin" / "python"
+
+    @property
+    def devel_setup(self) -> Path:
+        return self.root / "devel" / "setup.bash"
+
+    @property
+    def worlds_dir(self) -> Path:
+        return self.root / "worlds"
+
+    @property
+    def missions_dir(self) -> Path:
+        return self.root / "missions"
+
+    @property
+    def apt_packages_file(self) -> Path:
+        return self.root / "scripts" / "apt-packages.txt"
+
+    def apt_packages(self) -> list[str]:
+        lines = self.apt_packages_file.read_text().splitlines()
+        return [line.split("#", 1)[0].strip() for line in lines if line.split("#", 1)[0].strip()]
