@@ -1,0 +1,26 @@
+# MAGNA: the two commands people need are `make run` and `make test`; both set up first.
+SHELL := /bin/bash
+.DEFAULT_GOAL := help
+
+.PHONY: help setup run test lint bench clean
+
+help:  ## list the targets
+	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-7s %s\n", $$1, $$2}'
+
+setup:  ## install Debian packages, the venv and build the catkin workspace (quick when done)
+	@bash scripts/setup.sh
+
+run: setup  ## the main job on a built-in default (today: a live check of the ROS stack)
+	@./magna doctor
+
+test: setup  ## linters, unit tests (pytest) and integration tests (gtest, rostest), one summary
+	@bash scripts/test.sh
+
+lint: setup  ## ruff and catkin_lint only
+	@bash scripts/test.sh --lint-only
+
+bench: setup  ## benchmarks: print figures, never fail on a time
+	@bash scripts/with_env.sh bash -c 'for b in bench/*.py; do [ -e "$$b" ] || continue; echo "== $$b"; python "$$b" || exit 1; done'
+
+clean:  ## remove build products (keeps .venv)
+	rm -rf build devel install logs .catkin_tools

@@ -1,0 +1,32 @@
+#!/usr/bin/env bash
+# Everything `make test` checks, in order, with one summary at the end and a
+# non-zero exit if anything failed. Runs inside the workspace environment.
+set -uo pipefail
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+[ -n "${MAGNA_ROOT:-}" ] || exec bash "$root/scripts/with_env.sh" bash "$root/scripts/test.sh" "$@"
+cd "$root"
+
+results=build/magna_test_results
+rm -rf "$results" build/*/test_results
+mkdir -p "$results"
+failed_steps=()
+step() {  # name, command...
+  local name=$1; shift
+  printf '\n\033[1m== %s\033[0m\n' "$name"
+  "$@" || failed_steps+=("$name")
+}
+
+step "ruff" ruff check .
+step "catkin_lint" catkin_lint -W2 --strict --offline --quiet src
+if [ "${1:-}" != "--lint-only" ]; then
+  step "pytest (unit and live-master tests)" python -m pytest -q --junitxml="$results/pytest.xml"
+  step "catkin test (gtest and rostest)" catkin test --no-status --summarize
+fi
+
+python scripts/test_summary.py "$results" build/*/test_results
+summary_status=$?
+if [ ${#failed_steps[@]} -gt 0 ]; then
+  echo "failed steps: ${failed_steps[*]}" >&2
+  exit 1
+fi
+exit $summary_status
