@@ -80,6 +80,7 @@ class Concurrence(Container):
     def _run(self) -> str:
         self._child_outcomes = {}
         if not self._children:
+            self._notify("start")
             return self._decide({})
         finished = threading.Condition(self._lock)
         errors: list[BaseException] = []
@@ -114,6 +115,7 @@ class Concurrence(Container):
             if self._preempt.is_set():  # preempted before any child started
                 for state in self._children.values():
                     state.request_preempt()
+        self._notify("start")
         for thread in threads:
             thread.start()
         for thread in threads:

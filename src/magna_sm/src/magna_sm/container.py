@@ -140,6 +140,10 @@ class Container(State):
     def register_observer(self, observer: Callable[[ContainerEvent], None]) -> None:
         self._observers.append(observer)
 
+    def unregister_observer(self, observer: Callable[[ContainerEvent], None]) -> None:
+        if observer in self._observers:
+            self._observers.remove(observer)
+
     def _notify(self, kind: str, from_state: str = "", outcome: str = "", to_state: str = "") -> None:
         if self._observers:
             event = ContainerEvent(kind, self.path, tuple(self._active), from_state, outcome, to_state)
@@ -175,8 +179,7 @@ class Container(State):
         if parent_ud is not None:
             self._copy_inputs(parent_ud)
         try:
-            self._notify("start")
-            outcome = self._run()
+            outcome = self._run()  # announces "start" once its first children are active
         finally:
             with self._lock:
                 self._active = []

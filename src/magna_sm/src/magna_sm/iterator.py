@@ -71,6 +71,7 @@ class Iterator(Container):
         items = self._items() if callable(self._items) else self._items
         label = self._contained
         state = self._children[label]
+        self._notify("start")
         for item in items:
             with self._lock:
                 if self._preempt.is_set():

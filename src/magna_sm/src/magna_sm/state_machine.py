@@ -107,6 +107,7 @@ class StateMachine(Container):
     def _run(self) -> str:
         label = self._initial
         self._last_outcome = ""
+        starting = True
         while True:
             with self._lock:
                 if self._preempt.is_set():
@@ -115,6 +116,9 @@ class StateMachine(Container):
                 self._active = [label]
                 state = self._children[label]
                 state._arm()
+            if starting:
+                self._notify("start")
+                starting = False
             outcome = self._execute_child(label, state)
             target = self._target(label, outcome)
             with self._lock:

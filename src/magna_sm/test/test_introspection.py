@@ -1,0 +1,61 @@
+"""Introspection over a live master: structure and status topics, the snapshot service, the viewer node."""
+import threading
+import time
+
+import numpy as np
+from magna_msgs.msg import SMStatus
+from magna_msgs.srv import GetSMStructure
+from PIL import Image
+
+from magna_sm.draw import ACTIVE_FILL
+from magna_sm.examples import filmed_delivery
+from magna_sm.introspection import IntrospectionServer
+
+
+def test_status_follows_every_transition_and_structure_is_served(rospy_node):
+    rospy = rospy_node
+    machine = filmed_delivery(step=0.05)
+    server = IntrospectionServer("unit", machine, heartbeat=0.2).start()
+    seen, lock = [], threading.Lock()
+
+    def on_status(msg):
+        if msg.path == "/MISSION" and msg.active_states:
+            with lock:
+                if not seen or seen[-1] != msg.active_states[0]:
+                    seen.append(msg.active_states[0])
+
+    subscriber = rospy.Subscriber("/magna/sm/unit/status", SMStatus, on_status, queue_size=1000)
+    try:
+        deadline = time.monotonic() + 10
+        while subscriber.get_num_connections() == 0 and time.monotonic() < deadline:
+            time.sleep(0.02)
+        assert machine.execute() == "mission_completed"
+        time.sleep(0.3)
+        rospy.wait_for_service("/magna/sm/unit/get_structure", timeout=5)
+        containers = rospy.ServiceProxy("/magna/sm/unit/get_structure", GetSMStructure)().containers
+    finally:
+        subscriber.unregister()
+        server.stop()
+    with lock:
+        assert [s for s in seen if s != "1_safe_land"] == ["spawn_agents", "1_take_off", "1_filmed_delivery",
+                                                           "1_land"]
+    by_path = {c.path: c for c in containers}
+    assert set(by_path) == {"/MISSION", "/MISSION/1_filmed_delivery", "/MISSION/1_filmed_delivery/1_delivery",
+                            "/MISSION/1_filmed_delivery/2_filming"}
+    assert by_path["/MISSION/1_filmed_delivery"].container_type == "Concurrence"
+    assert "mission_completed" in by_path["/MISSION"].container_outcomes
+
+
+def test_viewer_node_redraws_the_live_machine(fresh_ros_master, tmp_path):
+    picture = tmp_path / "live.png"
+    demo = fresh_ros_master.spawn(["rosrun", "magna_sm", "demo", "--step", "0.4", "--repeat", "20"])
+    viewer = fresh_ros_master.spawn(["rosrun", "magna_sm", "viewer", "demo", "-o", str(picture), "--period", "0.1"])
+    deadline = time.monotonic() + 30
+    while not picture.exists() and time.monotonic() < deadline:
+        assert demo.poll() is None and viewer.poll() is None, "a node died"
+        time.sleep(0.1)
+    assert picture.exists(), "the viewer never drew the machine"
+    time.sleep(1.0)  # a few redraws, with states active
+    target = np.array([int(ACTIVE_FILL[i:i + 2], 16) for i in (1, 3, 5)])
+    pixels = np.asarray(Image.open(picture).convert("RGB"), dtype=int)
+    assert (np.abs(pixels - target).max(axis=2) <= 6).sum() > 100, "no active state is highlighted"
