@@ -98,7 +98,7 @@ def test_preempting_cancels_the_goal_and_the_state_can_run_again(action):
     machine.add_state("ACT", state)
     for round_number in (1, 2, 3):
         result = {}
-        thread = threading.Thread(target=lambda: result.setdefault("outcome", machine.execute()), daemon=True)
+        thread = threading.Thread(target=lambda out=result: out.setdefault("outcome", machine.execute()), daemon=True)
         thread.start()
         deadline = time.monotonic() + 10
         while len(plan["goals"]) < round_number and time.monotonic() < deadline:
