@@ -77,8 +77,13 @@ def test_a_master_can_be_started_and_stopped_again(tmp_path):
 
 def test_a_taken_port_is_a_clear_error(tmp_path):
     with RosMaster(log_dir=tmp_path / "a") as first:
-        with pytest.raises(RosMasterError, match=f"port {first.port}"):
-            RosMaster(port=first.port, start_timeout=3, log_dir=tmp_path / "b").start()
+        second = RosMaster(port=first.port, start_timeout=3, log_dir=tmp_path / "b")
+        try:
+            with pytest.raises(RosMasterError, match=f"port {first.port}"):
+                second.start()
+        finally:
+            second.stop()  # should the code regress, leave no master behind
+        assert not second.running
 
 
 def test_spawn_before_start_is_refused():
