@@ -1,5 +1,4 @@
 """SimpleActionState against a live action server: goals, results, custom outcomes, timeouts, preemption, reuse."""
-import re
 import threading
 import time
 
@@ -9,13 +8,13 @@ pytestmark = pytest.mark.ros
 
 
 @pytest.fixture
-def action(rospy_node, request):
+def action(rospy_node, ns):
     """An action server on a fresh namespace whose behaviour each test scripts through `plan`."""
     from magna_msgs.msg import TakeOffAction, TakeOffResult
 
     from magna_sm.simple_action import SimpleActionServer
 
-    name = "/test_action_state/" + re.sub(r"[^A-Za-z0-9_]", "_", request.node.name)
+    name = ns
     plan = {"mode": "succeed", "goals": [], "cancelled": 0}
 
     def execute(goal):

@@ -1,27 +1,12 @@
 """MAGNA's SimpleActionClient against actionlib's own (Debian) SimpleActionServer."""
-import re
 import threading
 import time
 
 import pytest
 
+from tests.support import WAIT, wait_until
+
 pytestmark = pytest.mark.ros
-
-WAIT = 10.0   # s: a guard against hangs, never a performance expectation
-
-
-def wait_until(predicate, what, timeout=WAIT):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return
-        time.sleep(0.005)
-    raise AssertionError(f"timed out waiting for {what}")
-
-
-@pytest.fixture
-def ns(request):
-    return "/test_sa_client/" + re.sub(r"[^A-Za-z0-9_]", "_", request.node.name)
 
 
 @pytest.fixture

@@ -3,29 +3,14 @@
 Every exchange crosses the wire: the stock client only knows the actionlib
 protocol, so these tests pin our server to it.
 """
-import re
 import threading
 import time
 
 import pytest
 
+from tests.support import WAIT, wait_until
+
 pytestmark = pytest.mark.ros
-
-WAIT = 10.0   # s: a guard against hangs, never a performance expectation
-
-
-def wait_until(predicate, what, timeout=WAIT):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return
-        time.sleep(0.005)
-    raise AssertionError(f"timed out waiting for {what}")
-
-
-@pytest.fixture
-def ns(request):
-    return "/test_sa_server/" + re.sub(r"[^A-Za-z0-9_]", "_", request.node.name)
 
 
 @pytest.fixture
