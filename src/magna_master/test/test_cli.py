@@ -41,6 +41,14 @@ def test_magna_is_on_path_after_sourcing_devel():
     assert "doctor" in out.stdout
 
 
+def test_ros_nodes_run_by_system_python_see_the_venv():
+    """rosrun relays use /usr/bin/python3; after sourcing, the venv's packages must import there too."""
+    script = f"source {ROOT}/devel/setup.bash && /usr/bin/python3 -c 'import torch, pybullet, matplotlib, rospy'"
+    out = subprocess.run(["bash", "-c", script], env={"PATH": "/usr/bin:/bin", "HOME": str(Path.home())},
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+
+
 def test_unknown_command_is_a_usage_error():
     out = subprocess.run([str(ROOT / "magna"), "fly-to-the-moon"], capture_output=True, text=True, timeout=60)
     assert out.returncode == 2

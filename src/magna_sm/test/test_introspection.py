@@ -1,6 +1,9 @@
 """Introspection over a live master: structure and status topics, the snapshot service, the viewer node."""
+import os
+import subprocess
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 from magna_msgs.msg import SMStatus
@@ -10,6 +13,7 @@ from PIL import Image
 from magna_sm.draw import ACTIVE_FILL
 from magna_sm.examples import filmed_delivery
 from magna_sm.introspection import IntrospectionServer
+from tests.support import wait_until
 
 
 def test_status_follows_every_transition_and_structure_is_served(rospy_node):
@@ -59,3 +63,24 @@ def test_viewer_node_redraws_the_live_machine(fresh_ros_master, tmp_path):
     target = np.array([int(ACTIVE_FILL[i:i + 2], 16) for i in (1, 3, 5)])
     pixels = np.asarray(Image.open(picture).convert("RGB"), dtype=int)
     assert (np.abs(pixels - target).max(axis=2) <= 6).sum() > 100, "no active state is highlighted"
+
+
+def _free_display() -> int:
+    return next(n for n in range(90, 200) if not Path(f"/tmp/.X11-unix/X{n}").exists()
+                and not Path(f"/tmp/.X{n}-lock").exists())
+
+
+def test_viewer_opens_a_window_when_a_display_exists(fresh_ros_master, tmp_path):
+    display = _free_display()
+    fresh_ros_master.spawn(["Xvfb", f":{display}", "-screen", "0", "1280x800x24", "-nolisten", "tcp"],
+                           stderr=subprocess.DEVNULL)
+    wait_until(lambda: Path(f"/tmp/.X11-unix/X{display}").exists(), "Xvfb to start")
+    fresh_ros_master.spawn(["rosrun", "magna_sm", "demo", "--step", "0.4", "--repeat", "20"])
+    log = tmp_path / "viewer.log"
+    with log.open("w") as sink:
+        viewer = fresh_ros_master.spawn(["rosrun", "magna_sm", "viewer", "demo", "-o", str(tmp_path / "w.png"),
+                                         "--once", "--timeout", "30"],
+                                        env={**os.environ, "DISPLAY": f":{display}"}, stdout=sink, stderr=sink)
+        assert viewer.wait(timeout=60) == 0, log.read_text()
+    assert (tmp_path / "w.png").exists()
+    assert "no window" not in log.read_text(), log.read_text()

@@ -169,7 +169,12 @@ def run_viewer(server: str, output: Path, namespace: str = DEFAULT_NAMESPACE, mi
     prefix = f"{namespace.rstrip('/')}/{server}"
     rospy.Subscriber(f"{prefix}/structure", SMStructure, view.on_structure, queue_size=100)
     rospy.Subscriber(f"{prefix}/status", SMStatus, view.on_status, queue_size=100)
-    shower = _Window() if window else None
+    shower = None
+    if window:
+        try:
+            shower = _Window()
+        except Exception as error:  # no Tk, or the display refused us: the file still works
+            rospy.logwarn(f"magna_sm viewer: no window ({error}); drawing to {output} only")
     drawn_version = -1
     deadline = time.monotonic() + timeout
     while not rospy.is_shutdown():

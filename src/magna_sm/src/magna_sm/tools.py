@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 from pathlib import Path
 
@@ -53,8 +54,8 @@ def viewer_main(argv: list[str] | None = None) -> int:
 
     parser = argparse.ArgumentParser(
         prog="rosrun magna_sm viewer",
-        description="Redraw a running machine from its introspection topics into an image file "
-                    "(and a window with --window when a display exists).")
+        description="Redraw a running machine from its introspection topics into an image file, "
+                    "and in a window when a display exists.")
     parser.add_argument("server", help="introspection server name (topics <namespace>/<server>/structure|status)")
     parser.add_argument("-o", "--output", type=Path, default=Path("state_machine.png"),
                         help="image file kept up to date (default: %(default)s)")
@@ -62,10 +63,12 @@ def viewer_main(argv: list[str] | None = None) -> int:
     parser.add_argument("--period", type=float, default=0.5, help="least seconds between redraws")
     parser.add_argument("--once", action="store_true", help="draw once the machine is seen, then exit")
     parser.add_argument("--timeout", type=float, default=10.0, help="with --once: seconds to wait for the machine")
-    parser.add_argument("--window", action="store_true", help="also show the picture in a window (needs DISPLAY)")
+    parser.add_argument("--no-window", action="store_true",
+                        help="never open a window (by default one opens when a display exists)")
     args = parser.parse_args(rospy.myargv(argv if argv is not None else sys.argv)[1:])
     rospy.init_node("magna_sm_viewer", anonymous=True)
-    return run_viewer(args.server, args.output, args.namespace, args.period, args.once, args.timeout, args.window)
+    window = not args.no_window and bool(os.environ.get("DISPLAY"))
+    return run_viewer(args.server, args.output, args.namespace, args.period, args.once, args.timeout, window)
 
 
 def demo_main(argv: list[str] | None = None) -> int:
