@@ -16,18 +16,11 @@ step() {  # name, command...
   "$@" || failed_steps+=("$name")
 }
 
-# ROS and MAGNA processes alive now; any new one still alive after the tests is a leak.
-ros_processes() { ps -eo pid=,stat=,args= | awk '$2 !~ /^Z/' | grep -E 'ros(master|launch|out|test)|magna|/devel/' \
-                  | grep -v -E 'grep|scripts/test.sh|with_env.sh' | awk '{print $1}' | sort; }
-before_pids=$(ros_processes)
+# Every process this run starts inherits the token; any still alive at the end is a leak.
+export MAGNA_TEST_RUN="$$-$(date +%s%N)"
 no_leftovers() {
   sleep 1  # let processes that are ending finish
-  local leaked
-  leaked=$(comm -13 <(echo "$before_pids") <(ros_processes))
-  [ -z "$leaked" ] && return 0
-  echo "processes started by the tests are still running:" >&2
-  for pid in $leaked; do ps -o pid=,args= -p "$pid" >&2; done
-  return 1
+  python scripts/leftover_processes.py
 }
 
 step "ruff" ruff check .
