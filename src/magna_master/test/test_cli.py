@@ -23,17 +23,21 @@ def test_every_command_has_help(capsys):
         assert f"usage: magna {name}" in capsys.readouterr().out
 
 
+def run_in_clean_shell(script: str, timeout: float = 120) -> subprocess.CompletedProcess:
+    """`script` in bash with nothing of the test's ROS or venv environment."""
+    return subprocess.run(["bash", "-c", script], env={"PATH": "/usr/bin:/bin", "HOME": str(Path.home())},
+                          capture_output=True, text=True, timeout=timeout)
+
+
 def test_repository_wrapper_runs_without_a_sourced_environment():
-    env = {"PATH": "/usr/bin:/bin", "HOME": str(Path.home())}
-    out = subprocess.run([str(ROOT / "magna"), "--help"], env=env, capture_output=True, text=True, timeout=60)
+    out = run_in_clean_shell(f"{ROOT}/magna --help")
     assert out.returncode == 0, out.stderr
     assert "doctor" in out.stdout
 
 
 def test_magna_is_on_path_after_sourcing_devel():
-    script = f"source {ROOT}/devel/setup.bash && command -v magna && command -v python3 && magna --help"
-    out = subprocess.run(["bash", "-c", script], env={"PATH": "/usr/bin:/bin", "HOME": str(Path.home())},
-                         capture_output=True, text=True, timeout=60)
+    out = run_in_clean_shell(f"source {ROOT}/devel/setup.bash && command -v magna && command -v python3 "
+                             "&& magna --help")
     assert out.returncode == 0, out.stderr
     magna_path, python_path = out.stdout.splitlines()[:2]
     assert magna_path == str(ROOT / "devel" / "bin" / "magna")
@@ -43,9 +47,8 @@ def test_magna_is_on_path_after_sourcing_devel():
 
 def test_ros_nodes_run_by_system_python_see_the_venv():
     """rosrun relays use /usr/bin/python3; after sourcing, the venv's packages must import there too."""
-    script = f"source {ROOT}/devel/setup.bash && /usr/bin/python3 -c 'import torch, pybullet, matplotlib, rospy'"
-    out = subprocess.run(["bash", "-c", script], env={"PATH": "/usr/bin:/bin", "HOME": str(Path.home())},
-                         capture_output=True, text=True, timeout=120)
+    out = run_in_clean_shell(f"source {ROOT}/devel/setup.bash && "
+                             "/usr/bin/python3 -c 'import torch, pybullet, matplotlib, rospy'")
     assert out.returncode == 0, out.stderr
 
 

@@ -39,20 +39,8 @@ class Workspace:
         return cls(find_root())
 
     @property
-    def venv_python(self) -> Path:
-        return self.root / ".venv" / "bin" / "python"
-
-    @property
     def devel_setup(self) -> Path:
         return self.root / "devel" / "setup.bash"
-
-    @property
-    def worlds_dir(self) -> Path:
-        return self.root / "worlds"
-
-    @property
-    def missions_dir(self) -> Path:
-        return self.root / "missions"
 
     @property
     def apt_packages_file(self) -> Path:

@@ -165,6 +165,11 @@ class Container(State):
             container_outcomes=self.get_registered_outcomes(), initial_states=tuple(self._initial_labels()),
             transitions=tuple(self._structure_transitions()))
 
+    @property
+    def initial_states(self) -> list[str]:
+        """Labels of the children a run starts with."""
+        return self._initial_labels()
+
     def _initial_labels(self) -> list[str]:
         return list(self._children)
 

@@ -95,7 +95,7 @@ class IntrospectionServer:
         msg.header.stamp = self._rospy.Time.now()
         msg.path = container.path
         msg.active_states = container.get_active_states()
-        msg.initial_states = list(container.describe().initial_states)
+        msg.initial_states = container.initial_states
         msg.last_outcome = self._last_outcome.get(container.path, "")
         msg.preempt_requested = container.preempt_requested()
         msg.info = info
