@@ -1,0 +1,1 @@
+"""MAGNA's UAV side: airframes today; the UAV manager lands with its own issue."""
