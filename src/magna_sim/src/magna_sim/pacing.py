@@ -1,0 +1,48 @@
+"""Keeps simulated time at a chosen multiple of wall time (or lets it run free)."""
+from __future__ import annotations
+
+import math
+import time
+
+
+def parse_real_time_factor(value) -> float:
+    """1.0 = real time, 5 = five times faster, 0 / "max" / "inf" = as fast as possible (returns inf)."""
+    if isinstance(value, str):
+        text = value.strip().lower()
+        if text in ("max", "inf", "fast", "0"):
+            return math.inf
+        try:
+            value = float(text)
+        except ValueError:
+            raise ValueError(f"real_time_factor: {value!r} is not a number; use e.g. 1.0, 10 or max") from None
+    value = float(value)
+    if math.isnan(value) or value < 0:
+        raise ValueError(f"real_time_factor: {value} must be positive (or 0 / max for as fast as possible)")
+    return math.inf if value == 0 else value
+
+
+class Pacer:
+    """Sleeps so that sim time t is reached no earlier than t / factor of wall time after start."""
+
+    # Further behind than this and we stop trying to catch up (a paused debugger, a slow step burst).
+    MAX_LAG = 0.5
+
+    def __init__(self, factor: float, clock=time.monotonic, sleep=time.sleep):
+        self.factor = factor
+        self._clock = clock
+        self._sleep = sleep
+        self._wall_start = None
+        self._sim_start = 0.0
+
+    def wait(self, sim_time: float) -> None:
+        if math.isinf(self.factor):
+            return
+        now = self._clock()
+        if self._wall_start is None:
+            self._wall_start, self._sim_start = now, sim_time
+            return
+        due = self._wall_start + (sim_time - self._sim_start) / self.factor
+        if due > now:
+            self._sleep(due - now)
+        elif now - due > self.MAX_LAG:
+            self._wall_start, self._sim_start = now, sim_time

@@ -1,0 +1,113 @@
+"""The UAL state machine and command checks, without physics: the vehicle is moved by hand."""
+import math
+
+import numpy as np
+import pytest
+
+from magna_sim.ual_logic import CommandRefused, UalLogic, UalSettings, UalState
+from magna_sim.vehicle import SetpointMode, Vehicle
+from magna_uav.airframes import load_airframe
+
+
+@pytest.fixture
+def logic():
+    vehicle = Vehicle("uav_1", 1, load_airframe("iris"), "light", position=np.array([1.0, 2.0, 0.0]))
+    ual = UalLogic(vehicle, UalSettings(velocity_timeout=1.0))
+    ual.update(0.0)
+    return ual
+
+
+def test_starts_uninitialized_then_landed_armed():
+    vehicle = Vehicle("uav_1", 1, load_airframe("iris"), "light")
+    ual = UalLogic(vehicle)
+    assert ual.state == UalState.UNINITIALIZED
+    ual.update(0.01)
+    assert ual.state == UalState.LANDED_ARMED
+
+
+def test_full_cycle_take_off_fly_land(logic):
+    vehicle = logic.vehicle
+    logic.take_off(3.0)
+    assert logic.state == UalState.TAKING_OFF
+    assert vehicle.setpoint.mode == SetpointMode.POSITION
+    assert vehicle.setpoint.position.tolist() == [1.0, 2.0, 3.0]
+    vehicle.position = np.array([1.0, 2.0, 1.5])
+    logic.update(1.0)
+    assert logic.state == UalState.TAKING_OFF
+    vehicle.position = np.array([1.0, 2.0, 2.95])
+    logic.update(2.0)
+    assert logic.state == UalState.FLYING_AUTO
+    logic.go_to([4.0, 5.0, 6.0], 0.0)
+    assert not logic.reached()
+    vehicle.position = np.array([4.0, 5.1, 6.0])
+    assert logic.reached()
+    logic.land()
+    assert logic.state == UalState.LANDING
+    vehicle.position, vehicle.velocity = np.array([4.0, 5.1, 0.01]), np.zeros(3)
+    logic.update(3.0)
+    assert logic.state == UalState.LANDED_ARMED
+    assert vehicle.setpoint.mode == SetpointMode.OFF
+
+
+@pytest.mark.parametrize("command", [
+    lambda ual: ual.land(),
+    lambda ual: ual.go_to([0, 0, 1], 0.0),
+    lambda ual: ual.set_pose([0, 0, 1], 0.0),
+    lambda ual: ual.set_velocity([0, 0, 1], 0.0),
+    lambda ual: ual.recover_from_manual(),
+])
+def test_commands_that_need_flight_are_refused_on_the_ground(logic, command):
+    with pytest.raises(CommandRefused, match="UAV 1 is LANDED_ARMED"):
+        command(logic)
+    assert logic.vehicle.setpoint.mode == SetpointMode.OFF
+    assert logic.command_id == 0
+
+
+def test_take_off_while_flying_is_refused(logic):
+    logic.take_off(2.0)
+    with pytest.raises(CommandRefused, match="take_off refused: UAV 1 is TAKING_OFF; take_off needs LANDED_ARMED"):
+        logic.take_off(2.0)
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf, -1.0, 0.0])
+def test_bad_take_off_heights(logic, bad):
+    with pytest.raises(CommandRefused, match="height"):
+        logic.take_off(bad)
+    assert logic.state == UalState.LANDED_ARMED
+
+
+def test_non_finite_setpoints_are_refused_and_change_nothing(logic):
+    logic.state = UalState.FLYING_AUTO
+    logic.go_to([1, 1, 1], 0.0)
+    before = logic.vehicle.setpoint
+    for command in (lambda: logic.set_pose([math.nan, 0, 1], 0.0), lambda: logic.set_pose([0, 0, 1], math.inf),
+                    lambda: logic.set_velocity([0, math.inf, 0], 0.0), lambda: logic.go_to([0, 0], 0.0)):
+        with pytest.raises(CommandRefused, match="finite"):
+            command()
+    assert logic.vehicle.setpoint is before
+
+
+def test_velocity_commands_time_out_into_a_hover(logic):
+    logic.state = UalState.FLYING_AUTO
+    logic.update(10.0)
+    logic.set_velocity([1.0, 0.0, 0.0], 0.1)
+    logic.update(10.5)
+    assert logic.vehicle.setpoint.mode == SetpointMode.VELOCITY
+    logic.vehicle.position = np.array([3.0, 2.0, 2.0])
+    logic.update(11.2)
+    assert logic.vehicle.setpoint.mode == SetpointMode.POSITION
+    assert logic.vehicle.setpoint.position.tolist() == [3.0, 2.0, 2.0]
+
+
+def test_set_home_keeps_z_unless_asked(logic):
+    logic.vehicle.position = np.array([5.0, 6.0, 7.0])
+    logic.set_home(False)
+    assert logic.home.tolist() == [5.0, 6.0, 0.0]
+    logic.set_home(True)
+    assert logic.home.tolist() == [5.0, 6.0, 7.0]
+
+
+def test_failsafe_land_overrides_what_was_commanded(logic):
+    logic.take_off(2.0)
+    logic.failsafe_land()
+    assert logic.state == UalState.LANDING

@@ -1,0 +1,189 @@
+"""SimWorld without ROS: UAL manoeuvres in both flight models, contacts, spawn checks, seeds, batteries."""
+import numpy as np
+import pytest
+
+from magna_sim.ual_logic import UalSettings, UalState
+from magna_sim.world import SimWorld, SpawnError
+
+
+@pytest.fixture
+def world():
+    sim = SimWorld(physics_rate=240.0, seed=5)
+    yield sim
+    sim.close()
+
+
+def run(world, seconds):
+    for _ in range(round(seconds / world.dt)):
+        world.step()
+
+
+def run_until(world, condition, seconds):
+    contacts = []
+    for _ in range(round(seconds / world.dt)):
+        contacts += world.step()
+        if condition():
+            return contacts
+    raise AssertionError(f"not reached within {seconds} s of sim time")
+
+
+@pytest.mark.parametrize("flight_model", ["light", "dynamic"])
+def test_take_off_go_to_and_land(world, flight_model):
+    uav = world.spawn_uav("uav_1", 1, "iris", flight_model, [1.0, -1.0, 0.0])
+    ual = world.ual[1]
+    run(world, 0.5)
+    assert ual.state == UalState.LANDED_ARMED
+    ual.take_off(2.0)
+    run_until(world, lambda: ual.state == UalState.FLYING_AUTO, 10)
+    assert uav.position[2] == pytest.approx(2.0, abs=0.2)
+    assert np.linalg.norm(uav.position[:2] - [1.0, -1.0]) < 0.1
+    ual.go_to([4.0, 3.0, 2.5], np.pi / 2)
+    run_until(world, ual.reached, 20)
+    run(world, 3.0)
+    assert np.linalg.norm(uav.position - [4.0, 3.0, 2.5]) < 0.1
+    assert uav.yaw == pytest.approx(np.pi / 2, abs=0.05)
+    ual.land()
+    run_until(world, lambda: ual.state == UalState.LANDED_ARMED, 20)
+    assert uav.position[2] < 0.05
+    assert np.linalg.norm(uav.position[:2] - [4.0, 3.0]) < 0.2
+
+
+def test_light_velocity_follows_a_first_order_lag(world):
+    uav = world.spawn_uav("uav_1", 1, "iris", "light", [0, 0, 0])
+    ual = world.ual[1]
+    world.step()
+    ual.take_off(1.0)
+    run_until(world, lambda: ual.state == UalState.FLYING_AUTO, 10)
+    run(world, 2.0)
+    ual.set_velocity([1.0, 0.0, 0.0], 0.0)
+    tau = uav.airframe.limits.velocity_time_constant
+    run(world, tau)
+    assert uav.velocity[0] == pytest.approx(1.0 - np.exp(-1.0), abs=0.02)  # 63% after one time constant
+    for _ in range(5):  # keep streaming, as a commander does, or the velocity timeout holds position
+        ual.set_velocity([1.0, 0.0, 0.0], 0.0)
+        run(world, tau)
+    assert uav.velocity[0] == pytest.approx(1.0, abs=0.01)
+    run(world, 1.5)  # silence: the velocity times out into a hover
+    assert abs(uav.velocity[0]) < 0.2 and ual.vehicle.setpoint.mode.name == "POSITION"
+
+
+def test_speed_limits_cap_a_far_waypoint(world):
+    uav = world.spawn_uav("uav_1", 1, "crazyflie", "light", [0, 0, 0])
+    ual = world.ual[1]
+    world.step()
+    ual.take_off(1.0)
+    run_until(world, lambda: ual.state == UalState.FLYING_AUTO, 10)
+    ual.go_to([100.0, 0.0, 1.0], 0.0)
+    peak = 0.0
+    for _ in range(240 * 5):
+        world.step()
+        peak = max(peak, np.linalg.norm(uav.velocity[:2]))
+    assert peak == pytest.approx(uav.airframe.limits.max_horizontal_speed, rel=0.01)
+
+
+def test_uav_uav_contact_is_reported_once_for_each_uav(world):
+    world.spawn_uav("uav_1", 1, "iris", "light", [0, 0, 0])
+    world.spawn_uav("uav_2", 2, "iris", "light", [3, 0, 0])
+    world.step()
+    for uav_id in (1, 2):
+        world.ual[uav_id].take_off(2.0)
+    run_until(world, lambda: all(world.ual[i].state == UalState.FLYING_AUTO for i in (1, 2)), 10)
+    world.ual[1].go_to([3.0, 0.0, 2.0], 0.0)
+    contacts = run_until(world, world.ual[1].reached, 20)
+    run(world, 1.0)
+    pairs = sorted((c.uav_id, c.other_kind, c.other_name) for c in contacts)
+    assert pairs == [(1, "uav", "2"), (2, "uav", "1")]
+    assert all(c.distance < 0.6 + 1e-6 for c in contacts)  # two radii of 0.3 m
+
+
+def test_obstacle_contact_and_gentle_landing_is_not_a_collision(world):
+    world.spawn_obstacle("pillar", "cylinder", [1.0, 1.0, 4.0], None, [2.0, 0.0, 2.0], [0, 0, 0, 1])
+    world.spawn_uav("uav_1", 1, "iris", "light", [0, 0, 0])
+    ual = world.ual[1]
+    world.step()
+    ual.take_off(1.5)
+    contacts = run_until(world, lambda: ual.state == UalState.FLYING_AUTO, 10)
+    ual.go_to([4.0, 0.0, 1.5], 0.0)
+    contacts += run_until(world, ual.reached, 20)
+    ual.land()
+    contacts += run_until(world, lambda: ual.state == UalState.LANDED_ARMED, 20)
+    assert [(c.other_kind, c.other_name) for c in contacts] == [("obstacle", "pillar")]
+
+
+def test_hitting_the_ground_fast_is_a_collision():
+    world = SimWorld(ual_settings=UalSettings(velocity_timeout=0.0))  # the dive must not time out
+    world.spawn_uav("uav_1", 1, "iris", "light", [0, 0, 0])
+    ual = world.ual[1]
+    world.step()
+    ual.take_off(3.0)
+    run_until(world, lambda: ual.state == UalState.FLYING_AUTO, 10)
+    ual.set_velocity([0.0, 0.0, -3.0], 0.0)
+    contacts = run_until(world, lambda: world.vehicles[1].position[2] <= 0.0, 10)
+    contacts += world.step()
+    world.close()
+    assert [c.other_kind for c in contacts] == ["ground"]
+    assert contacts[0].speed > 1.0
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    (dict(name="uav_1"), "name: 'uav_1' is taken"),
+    (dict(uav_id=1), "uav_id: 1 is already flying as 'uav_1'"),
+    (dict(airframe="zeppelin"), "airframe: .*no such airframe"),
+    (dict(flight_model="rocket"), "flight_model: 'rocket' is not one of light, dynamic"),
+    (dict(airframe="plane", flight_model="dynamic"), "flight_model: 'plane' has no rotors"),
+    (dict(position=[0, np.nan, 0]), r"pose.position: \[0.0, nan, 0.0\] must be 3 finite"),
+    (dict(name="bad name!"), "name: 'bad name!' must be"),
+])
+def test_spawn_refusals_name_the_field(world, kwargs, message):
+    world.spawn_uav("uav_1", 1, "iris", "light", [0, 0, 0])
+    request = dict(name="uav_2", uav_id=2, airframe="iris", flight_model="light", position=[2, 0, 0])
+    request.update(kwargs)
+    with pytest.raises(SpawnError, match=message):
+        world.spawn_uav(**request)
+    assert sorted(world.vehicles) == [1]
+    world.step()  # and the world still runs
+
+
+def test_obstacle_errors_and_delete(world):
+    with pytest.raises(SpawnError, match="dimensions"):
+        world.spawn_obstacle("box", "cube", [1.0, -1.0, 1.0], None, [0, 0, 1], [0, 0, 0, 1])
+    with pytest.raises(SpawnError, match="pose.orientation: the quaternion is zero"):
+        world.spawn_obstacle("box", "cube", [1.0, 1.0, 1.0], None, [0, 0, 1], [0, 0, 0, 0])
+    world.spawn_obstacle("box", "cube", [1.0, 1.0, 1.0], None, [0, 0, 1], [0, 0, 0, 1])
+    world.spawn_uav("uav_1", 1, "iris", "light", [3, 0, 0])
+    assert world.names() == ["box", "uav_1"]
+    assert world.delete("box") == "obstacle" and world.delete("uav_1") == "uav"
+    assert world.names() == [] and world.vehicles == {} and world.ual == {}
+    with pytest.raises(SpawnError, match="name: no model called 'box'"):
+        world.delete("box")
+    world.step()
+
+
+def _gusty_flight(seed):
+    sim = SimWorld(seed=seed, wind_std=2.0)
+    try:
+        sim.spawn_uav("uav_1", 1, "iris", "dynamic", [0, 0, 0])
+        sim.step()
+        sim.ual[1].take_off(2.0)
+        run(sim, 4.0)
+        return sim.vehicles[1].position.copy()
+    finally:
+        sim.close()
+
+
+def test_a_seed_makes_wind_reproducible():
+    first, again, other = _gusty_flight(11), _gusty_flight(11), _gusty_flight(12)
+    assert first.tolist() == again.tolist()
+    assert first.tolist() != other.tolist()
+
+
+def test_an_empty_battery_makes_the_uav_land(world):
+    world.spawn_uav("uav_1", 1, "iris", "light", [0, 0, 0])
+    ual = world.ual[1]
+    world.step()
+    ual.take_off(2.0)
+    run_until(world, lambda: ual.state == UalState.FLYING_AUTO, 10)
+    world.drain_batteries(0.5 * 3600)  # half an hour at hover: more than an iris battery holds
+    assert world.batteries[1].depleted
+    assert ual.state == UalState.LANDING
+    run_until(world, lambda: ual.state == UalState.LANDED_ARMED, 20)
