@@ -1,0 +1,93 @@
+"""`rosrun magna_sim fly`: fly one UAV by hand through its UAL API (simulated or real).
+
+Only UAL names are used, so it works against any UAL server.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="rosrun magna_sim fly",
+        description="Fly one UAV by hand through the UAL API under /uav_{id}/ual/.",
+        epilog="examples:\n  rosrun magna_sim fly --id 1 take_off 2\n  rosrun magna_sim fly --id 1 go_to 3 0 2 "
+               "--yaw 90\n  rosrun magna_sim fly --id 1 velocity 0.5 0 0 --duration 2\n"
+               "  rosrun magna_sim fly --id 1 land\n  rosrun magna_sim fly --id 1 state",
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--id", type=int, default=1, help="UAL id of the UAV (default 1)")
+    parser.add_argument("--no-wait", action="store_true", help="return at once instead of when the move is done")
+    sub = parser.add_subparsers(dest="command", required=True)
+    take_off = sub.add_parser("take_off", help="take off to HEIGHT metres above the current position")
+    take_off.add_argument("height", type=float)
+    sub.add_parser("land", help="land where the UAV is")
+    go_to = sub.add_parser("go_to", help="fly to X Y Z in the map frame")
+    for axis in "xyz":
+        go_to.add_argument(axis, type=float)
+    go_to.add_argument("--yaw", type=float, default=0.0, help="heading in degrees (default 0)")
+    velocity = sub.add_parser("velocity", help="fly at VX VY VZ m/s (map frame) for a while")
+    for axis in ("vx", "vy", "vz"):
+        velocity.add_argument(axis, type=float)
+    velocity.add_argument("--duration", type=float, default=1.0, help="seconds of sim time (default 1)")
+    sub.add_parser("state", help="print the UAL state and pose once")
+    return parser
+
+
+def main(argv=None) -> int:
+    import rospy
+
+    args = build_parser().parse_args(rospy.myargv()[1:] if argv is None else argv)
+    rospy.init_node("magna_fly", anonymous=True)
+    try:
+        run(args)
+    except (rospy.ServiceException, rospy.ROSException, LookupError) as err:
+        print(f"fly: {err}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def run(args) -> None:
+    import rospy
+    from geometry_msgs.msg import PoseStamped, TwistStamped
+    from uav_abstraction_layer.msg import State
+    from uav_abstraction_layer.srv import GoToWaypoint, Land, TakeOff
+
+    ids = rospy.get_param("/ual_ids", [])
+    if args.id not in ids:
+        raise LookupError(f"no UAL server for UAV {args.id}; /ual_ids = {ids}")
+    ns = f"/uav_{args.id}/ual/"
+    wait = not args.no_wait
+    if args.command == "take_off":
+        _service(ns + "take_off", TakeOff)(height=args.height, blocking=wait)
+    elif args.command == "land":
+        _service(ns + "land", Land)(blocking=wait)
+    elif args.command == "go_to":
+        target = PoseStamped()
+        target.header.frame_id = "map"
+        target.pose.position.x, target.pose.position.y, target.pose.position.z = args.x, args.y, args.z
+        half = math.radians(args.yaw) / 2.0
+        target.pose.orientation.z, target.pose.orientation.w = math.sin(half), math.cos(half)
+        _service(ns + "go_to_waypoint", GoToWaypoint)(waypoint=target, blocking=wait)
+    elif args.command == "velocity":
+        publisher = rospy.Publisher(ns + "set_velocity", TwistStamped, queue_size=1)
+        command = TwistStamped()
+        command.header.frame_id = "map"
+        command.twist.linear.x, command.twist.linear.y, command.twist.linear.z = args.vx, args.vy, args.vz
+        rate, end = rospy.Rate(20), rospy.Time.now() + rospy.Duration(args.duration)
+        while not rospy.is_shutdown() and rospy.Time.now() < end:
+            command.header.stamp = rospy.Time.now()
+            publisher.publish(command)
+            rate.sleep()
+    state = rospy.wait_for_message(ns + "state", State, timeout=10.0)
+    pose = rospy.wait_for_message(ns + "pose", PoseStamped, timeout=10.0).pose.position
+    names = {v: k for k, v in vars(State).items() if k.isupper()}
+    print(f"uav {args.id}: {names.get(state.state, state.state)} at ({pose.x:.2f}, {pose.y:.2f}, {pose.z:.2f})")
+
+
+def _service(name, kind):
+    import rospy
+
+    rospy.wait_for_service(name, timeout=10.0)
+    return rospy.ServiceProxy(name, kind)

@@ -1,0 +1,378 @@
+"""The magna_sim node: owns the world, /clock and one UAL server per UAV.
+
+One loop thread steps the world at a fixed rate, paced by the real-time
+factor; ROS callbacks only queue work for it (see command_queue). Messages are
+stamped with simulated time.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import rospy
+from geometry_msgs.msg import TransformStamped
+from magna_msgs.msg import CollisionEvent
+from magna_msgs.srv import DeleteModel, DeleteModelResponse, SpawnModel, SpawnModelResponse
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import BatteryState, CameraInfo, Image
+from tf2_msgs.msg import TFMessage
+
+from .command_queue import CommandQueue
+from .depth_camera import DepthCamera
+from .pacing import Pacer, parse_real_time_factor
+from .ros_ual import MAP_FRAME, UalServer, quaternion_yaw
+from .ual_logic import UalSettings
+from .world import SimWorld, SpawnError
+
+HELP = """\
+magna_sim: the pybullet world node. Every UAV is served with the GRVC UAL v3 API
+under /uav_{id}/ual/ (pose, velocity, odom, state; set_pose, set_velocity; take_off,
+land, go_to_waypoint, go_to_waypoint_geo, set_home, recover_from_manual).
+
+Also: /clock, tf map -> uav_{id}/base_link, /magna/sim/collisions (magna_msgs/CollisionEvent),
+/uav_{id}/mavros/battery (sensor_msgs/BatteryState), optional depth images on
+/uav_{id}/camera/depth/image_raw, and the services /magna/sim/spawn_model and
+/magna/sim/delete_model.
+
+Private parameters (defaults):
+  ~uavs (0)              UAVs 1..N spawned at start, side by side along y near the origin
+  ~model (iris)          their airframe (src/magna_uav/airframes/<model>.json)
+  ~flight_model (light)  light (kinematic) or dynamic (rotor forces)
+  ~spacing (2.0)         metres between the initial UAVs
+  ~physics_rate (240)    physics steps per simulated second
+  ~real_time_factor (1)  1 = real time, 10 = ten times faster, max (or 0) = as fast as possible
+  ~pub_rate (30)         UAL topics and tf per simulated second
+  ~clock_rate (100)      /clock messages per simulated second
+  ~seed (none)           seed for wind and sensor noise: same seed, same run
+  ~noise/position_std (0), ~noise/velocity_std (0), ~wind_std (0, N, dynamic model only)
+  ~map_origin_geo ([])   [lat, lon, alt] of the map origin, for go_to_waypoint_geo
+  ~battery_rate (1)      BatteryState messages per simulated second
+  ~depth_camera/enabled (false), ~depth_camera/width (64), /height (48), /rate (10), /fov (90)
+  ~position_th (0.33), ~orientation_th (0.65), ~velocity_timeout (1.0)   UAL thresholds
+  ~ground_impact_speed (1.0)   ground contacts faster than this (m/s) are collisions
+
+Example: roslaunch magna_sim sim.launch uavs:=3 model:=iris flight_model:=light rtf:=1.0
+"""
+
+
+def parse_cli(argv) -> None:
+    """Only --help: everything else comes from ROS parameters."""
+    parser = argparse.ArgumentParser(prog="rosrun magna_sim sim", description=HELP,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.parse_args(argv)
+
+
+@dataclass
+class NodeSettings:
+    uavs: int
+    model: str
+    flight_model: str
+    spacing: float
+    physics_rate: float
+    real_time_factor: float
+    pub_rate: float
+    clock_rate: float
+    battery_rate: float
+    seed: int | None
+    position_std: float
+    velocity_std: float
+    wind_std: float
+    map_origin_geo: list | None
+    camera: dict
+    ual: UalSettings
+    ground_impact_speed: float
+
+    @classmethod
+    def from_params(cls) -> NodeSettings:
+        seed = rospy.get_param("~seed", None)
+        origin = rospy.get_param("~map_origin_geo", [])
+        if origin and (len(origin) != 3 or not all(isinstance(v, (int, float)) for v in origin)):
+            raise ValueError(f"~map_origin_geo: {origin!r} must be [lat, lon, alt]")
+        settings = cls(
+            uavs=int(rospy.get_param("~uavs", 0)), model=rospy.get_param("~model", "iris"),
+            flight_model=rospy.get_param("~flight_model", "light"),
+            spacing=float(rospy.get_param("~spacing", 2.0)),
+            physics_rate=float(rospy.get_param("~physics_rate", 240.0)),
+            real_time_factor=parse_real_time_factor(rospy.get_param("~real_time_factor", 1.0)),
+            pub_rate=float(rospy.get_param("~pub_rate", 30.0)),
+            clock_rate=float(rospy.get_param("~clock_rate", 100.0)),
+            battery_rate=float(rospy.get_param("~battery_rate", 1.0)),
+            seed=None if seed in (None, "", "none") else int(seed),
+            position_std=float(rospy.get_param("~noise/position_std", 0.0)),
+            velocity_std=float(rospy.get_param("~noise/velocity_std", 0.0)),
+            wind_std=float(rospy.get_param("~wind_std", 0.0)),
+            map_origin_geo=[float(v) for v in origin] or None,
+            camera={"enabled": bool(rospy.get_param("~depth_camera/enabled", False)),
+                    "width": int(rospy.get_param("~depth_camera/width", 64)),
+                    "height": int(rospy.get_param("~depth_camera/height", 48)),
+                    "rate": float(rospy.get_param("~depth_camera/rate", 10.0)),
+                    "fov": float(rospy.get_param("~depth_camera/fov", 90.0))},
+            ual=UalSettings(position_th=float(rospy.get_param("~position_th", 0.33)),
+                            orientation_th=float(rospy.get_param("~orientation_th", 0.65)),
+                            velocity_timeout=float(rospy.get_param("~velocity_timeout", 1.0))),
+            ground_impact_speed=float(rospy.get_param("~ground_impact_speed", 1.0)))
+        for name in ("physics_rate", "pub_rate", "clock_rate", "battery_rate"):
+            value = getattr(settings, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"~{name}: {value} must be a positive rate (per simulated second)")
+        if settings.uavs < 0:
+            raise ValueError(f"~uavs: {settings.uavs} must be 0 or more")
+        return settings
+
+
+def _own_the_clock() -> Callable[[rospy.Time], None] | None:
+    """Stop this node from listening to the /clock it publishes; return the setter for its own rospy time.
+
+    With /use_sim_time, rospy subscribes every node to /clock. For the node that publishes it, that
+    round trip costs about a fifth of the loop, so it sets rospy's time directly instead.
+    Uses rospy internals (rospy.impl.simtime); if they ever change, it keeps the subscription.
+    """
+    try:
+        from rospy.impl import simtime
+        from rospy.rostime import _set_rostime
+    except ImportError:
+        return None
+    subscriber = getattr(simtime, "_clock_sub", None)
+    if subscriber is None:
+        return None
+    subscriber.unregister()
+    simtime._clock_sub = None
+    return _set_rostime
+
+
+def initial_positions(count: int, spacing: float) -> list[np.ndarray]:
+    """UAVs 1..N on a line along y, centred on the origin."""
+    return [np.array([0.0, (i - (count - 1) / 2.0) * spacing, 0.0]) for i in range(count)]
+
+
+class _Schedule:
+    """Fires every `period` of simulated time."""
+
+    def __init__(self, rate: float):
+        self.period = 1.0 / rate
+        self.next = 0.0
+
+    def due(self, now: float) -> bool:
+        if now + 1e-9 < self.next:
+            return False
+        self.next = max(self.next + self.period, now)
+        return True
+
+
+class SimNode:
+    def __init__(self, settings: NodeSettings):
+        self.settings = settings
+        self.world = SimWorld(settings.physics_rate, settings.seed, settings.wind_std, settings.ual,
+                              settings.ground_impact_speed)
+        self.queue = CommandQueue()
+        self.servers: dict[int, UalServer] = {}
+        self.cameras: dict[int, tuple[rospy.Publisher, rospy.Publisher]] = {}
+        self._camera = DepthCamera(self.world.client, settings.camera["width"], settings.camera["height"],
+                                   settings.camera["fov"]) if settings.camera["enabled"] else None
+        self._clock_pub = rospy.Publisher("/clock", Clock, queue_size=10)
+        self._tf_pub = rospy.Publisher("/tf", TFMessage, queue_size=100)
+        self._collision_pub = rospy.Publisher("/magna/sim/collisions", CollisionEvent, queue_size=100)
+        self._battery_pubs: dict[int, rospy.Publisher] = {}
+        for i, position in enumerate(initial_positions(settings.uavs, settings.spacing), start=1):
+            self.spawn_uav(f"uav_{i}", i, settings.model, settings.flight_model, position, 0.0)
+        self._services = [rospy.Service("/magna/sim/spawn_model", SpawnModel, self._on_spawn),
+                          rospy.Service("/magna/sim/delete_model", DeleteModel, self._on_delete)]
+
+    # --- models (simulation thread) --------------------------------------------------------------------------
+    def spawn_uav(self, name, uav_id, airframe, flight_model, position, yaw, rgba=(0.2, 0.2, 0.25, 1.0)):
+        ids = list(rospy.get_param("/ual_ids", []))
+        if uav_id in ids and uav_id not in self.servers:
+            raise SpawnError(f"uav_id: {uav_id} is already in /ual_ids (another UAL server has it); pick a free id")
+        if uav_id < 1:
+            raise SpawnError(f"uav_id: {uav_id} must be 1 or more (UAL namespaces are /uav_{{id}})")
+        vehicle = self.world.spawn_uav(name, uav_id, airframe, flight_model, position, yaw, rgba)
+        self.servers[uav_id] = UalServer(uav_id, self.world.ual[uav_id], self.queue, self.settings.map_origin_geo)
+        self._battery_pubs[uav_id] = rospy.Publisher(f"/uav_{uav_id}/mavros/battery", BatteryState, queue_size=1)
+        if self._camera is not None:
+            base = f"/uav_{uav_id}/camera/depth/"
+            self.cameras[uav_id] = (rospy.Publisher(base + "image_raw", Image, queue_size=1),
+                                    rospy.Publisher(base + "camera_info", CameraInfo, queue_size=1))
+        rospy.set_param("/ual_ids", sorted(set(ids) | {uav_id}))
+        rospy.loginfo(f"magna_sim: spawned {name} (UAL id {uav_id}, {airframe}, {flight_model}) "
+                      f"at {np.round(vehicle.position, 2).tolist()}")
+        return vehicle
+
+    def delete(self, name: str) -> str:
+        uav_id = next((i for i, v in self.world.vehicles.items() if v.name == name), None)
+        kind = self.world.delete(name)
+        if uav_id is not None:
+            self._forget_uav(uav_id)
+        return kind
+
+    def _forget_uav(self, uav_id: int) -> None:
+        self.servers.pop(uav_id).shutdown()
+        self._battery_pubs.pop(uav_id).unregister()
+        for publisher in self.cameras.pop(uav_id, ()):
+            publisher.unregister()
+        ids = [i for i in rospy.get_param("/ual_ids", []) if i != uav_id]
+        rospy.set_param("/ual_ids", ids)
+
+    # --- services (callback threads) -------------------------------------------------------------------------
+    def _on_spawn(self, req):
+        def spawn():
+            pose = req.pose
+            position = [pose.position.x, pose.position.y, pose.position.z]
+            rgba = (req.color.r, req.color.g, req.color.b, req.color.a or 1.0)
+            if req.kind == "uav":
+                self.spawn_uav(req.name, int(req.uav_id), req.airframe or self.settings.model,
+                               req.flight_model or self.settings.flight_model, position,
+                               quaternion_yaw(pose.orientation), rgba)
+                return f"spawned UAV '{req.name}' as /uav_{req.uav_id}/ual"
+            if req.kind == "obstacle":
+                q = pose.orientation
+                orientation = [q.x, q.y, q.z, q.w] if (q.x, q.y, q.z, q.w) != (0, 0, 0, 0) else [0, 0, 0, 1]
+                vertices = [[v.x, v.y, v.z] for v in req.vertices] or None
+                self.world.spawn_obstacle(req.name, req.shape, list(req.dimensions), vertices, position,
+                                          orientation, rgba)
+                return f"spawned {req.shape} '{req.name}'"
+            raise SpawnError(f"kind: '{req.kind}' must be 'uav' or 'obstacle'")
+
+        return SpawnModelResponse(*self._answer("spawn_model", spawn))
+
+    def _on_delete(self, req):
+        return DeleteModelResponse(*self._answer("delete_model", lambda: f"deleted {self.delete(req.name)} "
+                                                                         f"'{req.name}'"))
+
+    def _answer(self, service: str, action) -> tuple[bool, str]:
+        try:
+            message = self.queue.run(action)
+        except (ValueError, RuntimeError) as err:  # SpawnError, ShapeError, LoopStopped
+            rospy.logerr(f"/magna/sim/{service}: {err}")
+            return False, str(err)
+        rospy.loginfo(f"/magna/sim/{service}: {message}")
+        return True, message
+
+    # --- the loop --------------------------------------------------------------------------------------------
+    def spin(self) -> None:
+        settings = self.settings
+        pacer = Pacer(settings.real_time_factor)
+        clock, publish, battery = (_Schedule(settings.clock_rate), _Schedule(settings.pub_rate),
+                                   _Schedule(settings.battery_rate))
+        camera = _Schedule(settings.camera["rate"]) if self._camera is not None else None
+        clock_msg = Clock()
+        set_own_time = _own_the_clock()
+        try:
+            while not rospy.is_shutdown():
+                self.queue.run_pending()
+                contacts = self.world.step()
+                self.queue.check_waiters()
+                now = self.world.time
+                stamp = rospy.Time.from_sec(now)
+                if clock.due(now):
+                    clock_msg.clock = stamp
+                    self._clock_pub.publish(clock_msg)
+                    if set_own_time is not None:
+                        set_own_time(stamp)
+                if publish.due(now):
+                    self._publish_ual(stamp)
+                if battery.due(now):
+                    self.world.drain_batteries(battery.period)
+                    self._publish_batteries(stamp)
+                if camera is not None and camera.due(now):
+                    self._publish_depth(stamp)
+                for contact in contacts:
+                    self._publish_contact(contact, stamp)
+                pacer.wait(now)
+        finally:
+            self.shutdown()
+
+    def shutdown(self) -> None:
+        self.queue.stop("magna_sim is shutting down")
+        for uav_id in list(self.servers):
+            try:
+                self._forget_uav(uav_id)
+            except (ConnectionError, OSError):  # the master may already be gone
+                pass
+        self.world.close()
+
+    # --- publishing ------------------------------------------------------------------------------------------
+    def _publish_ual(self, stamp) -> None:
+        transforms = []
+        with_tf = self._tf_pub.get_num_connections() > 0
+        rng = self.world.rng
+        for uav_id, server in self.servers.items():
+            vehicle = self.world.vehicles[uav_id]
+            position, velocity = vehicle.position, vehicle.velocity
+            if self.settings.position_std > 0:
+                position = position + rng.normal(0.0, self.settings.position_std, 3)
+            if self.settings.velocity_std > 0:
+                velocity = velocity + rng.normal(0.0, self.settings.velocity_std, 3)
+            server.publish(stamp, position, velocity)
+            if not with_tf:
+                continue
+            transform = TransformStamped()
+            transform.header.stamp = stamp
+            transform.header.frame_id = MAP_FRAME
+            transform.child_frame_id = server.base_frame
+            t, r = transform.transform.translation, transform.transform.rotation
+            t.x, t.y, t.z = vehicle.position
+            r.x, r.y, r.z, r.w = vehicle.orientation
+            transforms.append(transform)
+        if transforms:
+            self._tf_pub.publish(TFMessage(transforms=transforms))
+
+    def _publish_batteries(self, stamp) -> None:
+        for uav_id, publisher in self._battery_pubs.items():
+            model = self.world.batteries[uav_id]
+            msg = BatteryState()
+            msg.header.stamp = stamp
+            msg.voltage = model.voltage
+            msg.current = -model.current  # BatteryState: negative while discharging
+            msg.charge = model.charge_ah
+            msg.capacity = msg.design_capacity = model.capacity_ah
+            msg.percentage = model.percentage
+            msg.power_supply_status = BatteryState.POWER_SUPPLY_STATUS_DISCHARGING
+            msg.power_supply_technology = BatteryState.POWER_SUPPLY_TECHNOLOGY_LIPO
+            msg.present = True
+            publisher.publish(msg)
+
+    def _publish_depth(self, stamp) -> None:
+        camera = self._camera
+        for uav_id, (image_pub, info_pub) in self.cameras.items():
+            if image_pub.get_num_connections() == 0 and info_pub.get_num_connections() == 0:
+                continue  # rendering is the costly part: skip it when nobody looks
+            vehicle = self.world.vehicles[uav_id]
+            depth = camera.render(vehicle.position, vehicle.orientation)
+            frame = f"uav_{uav_id}/camera_depth_optical_frame"
+            image = Image(height=depth.shape[0], width=depth.shape[1], encoding="32FC1", is_bigendian=0,
+                          step=depth.shape[1] * 4, data=depth.astype("<f4").tobytes())
+            image.header.stamp, image.header.frame_id = stamp, frame
+            image_pub.publish(image)
+            info = CameraInfo(height=depth.shape[0], width=depth.shape[1], distortion_model="plumb_bob")
+            info.header = image.header
+            fx, fy, cx, cy = camera.fx, camera.fy, camera.cx, camera.cy
+            info.K = [fx, 0, cx, 0, fy, cy, 0, 0, 1]
+            info.P = [fx, 0, cx, 0, 0, fy, cy, 0, 0, 0, 1, 0]
+            info.R = [1, 0, 0, 0, 1, 0, 0, 0, 1]
+            info.D = [0.0] * 5
+            info_pub.publish(info)
+
+    def _publish_contact(self, contact, stamp) -> None:
+        msg = CollisionEvent(agent_id=contact.uav_id, other_kind=contact.other_kind, other_name=contact.other_name,
+                             distance=contact.distance, threshold=0.0)
+        msg.header.stamp, msg.header.frame_id = stamp, MAP_FRAME
+        msg.position.x, msg.position.y, msg.position.z = contact.position
+        self._collision_pub.publish(msg)
+        rospy.logwarn(f"magna_sim: UAV {contact.uav_id} hit {contact.other_kind} {contact.other_name} "
+                      f"at {contact.speed:.2f} m/s")
+
+
+def main(argv=None) -> int:
+    parse_cli(rospy.myargv()[1:] if argv is None else argv)
+    rospy.init_node("magna_sim")
+    try:
+        settings = NodeSettings.from_params()
+        node = SimNode(settings)
+    except (ValueError, SpawnError) as err:
+        rospy.logfatal(f"magna_sim: {err}")
+        return 2
+    node.spin()
+    return 0

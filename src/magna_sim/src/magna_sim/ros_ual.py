@@ -1,0 +1,217 @@
+"""The GRVC UAL v3 API of one simulated UAV, under /uav_{id}/ual/.
+
+Topics and services are those of a real UAL server, so a client cannot tell
+the difference. Every callback hands its work to the simulation loop through
+the CommandQueue; a refused command fails the service call with the reason
+(the UAL services have empty responses, so the error travels as the ROS
+service error) and is logged.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import rospy
+from geometry_msgs.msg import PoseStamped, TwistStamped
+from nav_msgs.msg import Odometry
+from std_srvs.srv import Empty, EmptyResponse
+from uav_abstraction_layer.msg import State
+from uav_abstraction_layer.srv import (
+    GoToWaypoint,
+    GoToWaypointGeo,
+    GoToWaypointGeoResponse,
+    GoToWaypointResponse,
+    Land,
+    LandResponse,
+    SetHome,
+    SetHomeResponse,
+    TakeOff,
+    TakeOffResponse,
+)
+
+from . import geo
+from .command_queue import CommandQueue, LoopStopped
+from .ual_logic import CommandRefused, UalLogic, UalState
+
+MAP_FRAME = "map"
+
+
+def quaternion_yaw(q) -> float:
+    x, y, z, w = q.x, q.y, q.z, q.w
+    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+def rotate_into_body(orientation_xyzw, vector) -> tuple[float, float, float]:
+    """Express a map-frame vector in the body frame (R^T v), in plain floats: numpy is slower at this size."""
+    x, y, z, w = (float(c) for c in orientation_xyzw)
+    vx, vy, vz = (float(c) for c in vector)
+    # R^T v = v + 2 q' x (q' x v + w v) with q' = -(x, y, z)
+    tx, ty, tz = -y * vz + z * vy + w * vx, -z * vx + x * vz + w * vy, -x * vy + y * vx + w * vz
+    return (vx + 2.0 * (-y * tz + z * ty), vy + 2.0 * (-z * tx + x * tz), vz + 2.0 * (-x * ty + y * tx))
+
+
+class UalServer:
+    def __init__(self, uav_id: int, logic: UalLogic, queue: CommandQueue, map_origin_geo=None):
+        self.uav_id = uav_id
+        self.logic = logic
+        self.queue = queue
+        self.map_origin_geo = map_origin_geo
+        self.base_frame = f"uav_{uav_id}/base_link"
+        self.home_frame = f"uav_{uav_id}_home"
+        ns = f"/uav_{uav_id}/ual/"
+        self._pose_pub = rospy.Publisher(ns + "pose", PoseStamped, queue_size=1)
+        self._velocity_pub = rospy.Publisher(ns + "velocity", TwistStamped, queue_size=1)
+        self._odom_pub = rospy.Publisher(ns + "odom", Odometry, queue_size=1)
+        self._state_pub = rospy.Publisher(ns + "state", State, queue_size=1)
+        self._subscribers = [rospy.Subscriber(ns + "set_pose", PoseStamped, self._on_set_pose, queue_size=1),
+                             rospy.Subscriber(ns + "set_velocity", TwistStamped, self._on_set_velocity,
+                                              queue_size=1)]
+        self._services = [
+            rospy.Service(ns + "take_off", TakeOff, self._take_off),
+            rospy.Service(ns + "land", Land, self._land),
+            rospy.Service(ns + "go_to_waypoint", GoToWaypoint, self._go_to_waypoint),
+            rospy.Service(ns + "go_to_waypoint_geo", GoToWaypointGeo, self._go_to_waypoint_geo),
+            rospy.Service(ns + "set_home", SetHome, self._set_home),
+            rospy.Service(ns + "recover_from_manual", Empty, self._recover_from_manual)]
+        self._pose = PoseStamped()
+        self._pose.header.frame_id = MAP_FRAME
+        self._twist = TwistStamped()
+        self._twist.header.frame_id = MAP_FRAME
+        self._odom = Odometry()
+        self._odom.header.frame_id = MAP_FRAME
+        self._odom.child_frame_id = self.base_frame
+        self._state = State()
+
+    def shutdown(self) -> None:
+        for subscriber in self._subscribers:
+            subscriber.unregister()
+        for service in self._services:
+            service.shutdown()
+        for publisher in (self._pose_pub, self._velocity_pub, self._odom_pub, self._state_pub):
+            publisher.unregister()
+
+    # --- publishing (simulation thread) ----------------------------------------------------------------------
+    def publish(self, stamp: rospy.Time, position: np.ndarray, velocity: np.ndarray) -> None:
+        """Publish pose, velocity, odom and state; position and velocity may carry sensor noise.
+
+        A topic nobody listens to is skipped, as rospy would drop it anyway after we filled it in.
+        """
+        vehicle = self.logic.vehicle
+        q = vehicle.orientation
+        pose = self._pose.pose
+        pose.position.x, pose.position.y, pose.position.z = (float(c) for c in position)
+        pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w = (float(c) for c in q)
+        if self._pose_pub.get_num_connections():
+            self._pose.header.stamp = stamp
+            self._pose_pub.publish(self._pose)
+        if self._velocity_pub.get_num_connections():
+            twist = self._twist.twist
+            twist.linear.x, twist.linear.y, twist.linear.z = (float(c) for c in velocity)
+            twist.angular.x, twist.angular.y, twist.angular.z = (float(c) for c in vehicle.angular_velocity)
+            self._twist.header.stamp = stamp
+            self._velocity_pub.publish(self._twist)
+        if self._odom_pub.get_num_connections():
+            self._odom.header.stamp = stamp
+            self._odom.pose.pose = pose
+            body = self._odom.twist.twist
+            body.linear.x, body.linear.y, body.linear.z = rotate_into_body(q, velocity)
+            body.angular.x, body.angular.y, body.angular.z = rotate_into_body(q, vehicle.angular_velocity)
+            self._odom_pub.publish(self._odom)
+        if self._state_pub.get_num_connections():
+            self._state.state = int(self.logic.state)
+            self._state_pub.publish(self._state)
+
+    # --- streamed setpoints ----------------------------------------------------------------------------------
+    def _on_set_pose(self, msg: PoseStamped) -> None:
+        try:
+            position = self._to_map(msg.header.frame_id, msg.pose.position)
+            self.queue.run(lambda: self.logic.set_pose(position, quaternion_yaw(msg.pose.orientation)))
+        except (CommandRefused, LoopStopped) as err:
+            rospy.logwarn_throttle(2.0, f"/uav_{self.uav_id}/ual/set_pose ignored: {err}")
+
+    def _on_set_velocity(self, msg: TwistStamped) -> None:
+        if msg.header.frame_id not in ("", MAP_FRAME):
+            rospy.logwarn_throttle(2.0, f"/uav_{self.uav_id}/ual/set_velocity ignored: header.frame_id "
+                                        f"'{msg.header.frame_id}' unknown; send velocities in '{MAP_FRAME}'")
+            return
+        linear = (msg.twist.linear.x, msg.twist.linear.y, msg.twist.linear.z)
+        try:
+            self.queue.run(lambda: self.logic.set_velocity(linear, msg.twist.angular.z))
+        except (CommandRefused, LoopStopped) as err:
+            rospy.logwarn_throttle(2.0, f"/uav_{self.uav_id}/ual/set_velocity ignored: {err}")
+
+    # --- services --------------------------------------------------------------------------------------------
+    def _take_off(self, req):
+        self._command("take_off", lambda: self.logic.take_off(req.height),
+                      req.blocking, lambda: self.logic.state == UalState.FLYING_AUTO)
+        return TakeOffResponse()
+
+    def _land(self, req):
+        self._command("land", self.logic.land, req.blocking, lambda: self.logic.state == UalState.LANDED_ARMED)
+        return LandResponse()
+
+    def _go_to_waypoint(self, req):
+        pose = req.waypoint.pose
+        position = self._service_guard("go_to_waypoint",
+                                       lambda: self._to_map(req.waypoint.header.frame_id, pose.position))
+        self._command("go_to_waypoint", lambda: self.logic.go_to(position, quaternion_yaw(pose.orientation)),
+                      req.blocking, self.logic.reached)
+        return GoToWaypointResponse()
+
+    def _go_to_waypoint_geo(self, req):
+        fix = req.waypoint
+        position = self._service_guard("go_to_waypoint_geo", lambda: self._geo_to_map(fix))
+        self._command("go_to_waypoint_geo", lambda: self.logic.go_to(position, self.logic.vehicle.yaw),
+                      req.blocking, self.logic.reached)
+        return GoToWaypointGeoResponse()
+
+    def _set_home(self, req):
+        self._command("set_home", lambda: self.logic.set_home(req.set_z), False, None)
+        return SetHomeResponse()
+
+    def _recover_from_manual(self, _req):
+        self._command("recover_from_manual", self.logic.recover_from_manual, False, None)
+        return EmptyResponse()
+
+    def _command(self, name: str, action, blocking: bool, done) -> None:
+        """Run a command in the loop; if blocking, wait until done() holds for that same command."""
+        def start():
+            action()
+            return self.logic.command_id
+
+        command_id = self._service_guard(name, lambda: self.queue.run(start))
+        if not blocking:
+            return
+
+        def finished():
+            if self.logic.command_id != command_id:
+                raise CommandRefused(f"{name} interrupted: a newer command replaced it before it finished")
+            return True if done() else None
+
+        self._service_guard(name, lambda: self.queue.wait_for(finished))
+
+    def _service_guard(self, name: str, fn):
+        try:
+            return fn()
+        except (ValueError, LoopStopped) as err:  # CommandRefused is a ValueError
+            rospy.logerr(f"/uav_{self.uav_id}/ual/{name}: {err}")
+            raise rospy.ServiceException(str(err)) from None
+
+    # --- frames ----------------------------------------------------------------------------------------------
+    def _to_map(self, frame_id: str, point) -> np.ndarray:
+        position = np.array([point.x, point.y, point.z], dtype=float)
+        if frame_id in ("", MAP_FRAME):
+            return position
+        if frame_id == self.home_frame:
+            return position + self.logic.home
+        raise CommandRefused(f"header.frame_id '{frame_id}' is not known here; use '{MAP_FRAME}' "
+                             f"or '{self.home_frame}'")
+
+    def _geo_to_map(self, fix) -> np.ndarray:
+        if self.map_origin_geo is None:
+            raise CommandRefused("no map origin: start magna_sim with ~map_origin_geo [lat, lon, alt] "
+                                 "(or a world with origin_geo) to fly to geographic waypoints")
+        values = (fix.latitude, fix.longitude, fix.altitude)
+        if not all(math.isfinite(v) for v in values):
+            raise CommandRefused(f"waypoint: latitude/longitude/altitude {list(values)} must be finite numbers")
+        return geo.geodetic_to_enu(*values, self.map_origin_geo)

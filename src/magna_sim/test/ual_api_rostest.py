@@ -1,0 +1,204 @@
+#!/usr/bin/env python3
+"""magna_sim through its ROS interface: the UAL API of three UAVs, refusals, spawning, sensing.
+
+Runs in three_uavs.test against `sim.launch uavs:=3`; the UAVs end landed where
+they started, so the plain-client test that follows finds them as it expects.
+"""
+import math
+import sys
+import unittest
+
+import rospy
+import rostest
+import tf2_ros
+from geometry_msgs.msg import PoseStamped, TwistStamped
+from magna_msgs.msg import CollisionEvent
+from magna_msgs.srv import DeleteModel, SpawnModel, SpawnModelRequest
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import BatteryState
+from uav_abstraction_layer.msg import State
+from uav_abstraction_layer.srv import GoToWaypoint, Land, TakeOff
+
+IDS = (1, 2, 3)
+
+
+def pose_at(x, y, z, yaw=0.0, frame="map"):
+    msg = PoseStamped()
+    msg.header.frame_id = frame
+    msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = x, y, z
+    msg.pose.orientation.z, msg.pose.orientation.w = math.sin(yaw / 2), math.cos(yaw / 2)
+    return msg
+
+
+def wait(condition, what, sim_seconds=30.0):
+    deadline = rospy.get_rostime() + rospy.Duration(sim_seconds)
+    while not condition():
+        if rospy.is_shutdown() or rospy.get_rostime() > deadline:
+            raise AssertionError("timed out waiting for " + what)
+        rospy.sleep(0.02)
+
+
+class Latest:
+    """The last message of a topic."""
+
+    def __init__(self, topic, kind):
+        self.msg, self.all = None, []
+        rospy.Subscriber(topic, kind, self._store)
+
+    def _store(self, msg):
+        self.msg = msg
+        self.all.append(msg)
+
+
+class UalApi(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.pose = {i: Latest(f"/uav_{i}/ual/pose", PoseStamped) for i in IDS}
+        cls.velocity = {i: Latest(f"/uav_{i}/ual/velocity", TwistStamped) for i in IDS}
+        cls.state = {i: Latest(f"/uav_{i}/ual/state", State) for i in IDS}
+        cls.battery = {i: Latest(f"/uav_{i}/mavros/battery", BatteryState) for i in IDS}
+        cls.collisions = Latest("/magna/sim/collisions", CollisionEvent)
+        cls.clock = Latest("/clock", Clock)
+        cls.set_pose = {i: rospy.Publisher(f"/uav_{i}/ual/set_pose", PoseStamped, queue_size=1) for i in IDS}
+        cls.set_velocity = {i: rospy.Publisher(f"/uav_{i}/ual/set_velocity", TwistStamped, queue_size=1)
+                            for i in IDS}
+        cls.services = {}
+        for i in IDS:
+            for name, kind in (("take_off", TakeOff), ("land", Land), ("go_to_waypoint", GoToWaypoint)):
+                rospy.wait_for_service(f"/uav_{i}/ual/{name}", timeout=30)
+                cls.services[i, name] = rospy.ServiceProxy(f"/uav_{i}/ual/{name}", kind)
+        rospy.wait_for_service("/magna/sim/spawn_model", timeout=30)
+        cls.spawn = rospy.ServiceProxy("/magna/sim/spawn_model", SpawnModel)
+        cls.delete = rospy.ServiceProxy("/magna/sim/delete_model", DeleteModel)
+        cls.tf_buffer = tf2_ros.Buffer()
+        cls.tf_listener = tf2_ros.TransformListener(cls.tf_buffer)
+        wait(lambda: all(cls.state[i].msg and cls.state[i].msg.state == State.LANDED_ARMED for i in IDS),
+             "three LANDED_ARMED UAVs")
+
+    @staticmethod
+    def settle():
+        """Let the 30 Hz topics catch up with a call that just returned."""
+        rospy.sleep(0.1)
+
+    def position(self, i):
+        p = self.pose[i].msg.pose.position
+        return (p.x, p.y, p.z)
+
+    def state_of(self, i):
+        return self.state[i].msg.state
+
+    def call_fails(self, call, pattern):
+        with self.assertRaises(rospy.ServiceException) as caught:
+            call()
+        self.assertRegex(str(caught.exception), pattern)
+
+    def test_1_landed_side_by_side_with_ids_clock_and_battery(self):
+        self.assertEqual(sorted(rospy.get_param("/ual_ids")), list(IDS))
+        ys = [self.position(i)[1] for i in IDS]
+        self.assertEqual(ys, sorted(ys))
+        self.assertTrue(all(abs(self.position(i)[2]) < 0.01 for i in IDS))
+        first = self.clock.msg.clock
+        rospy.sleep(0.5)
+        self.assertGreater(self.clock.msg.clock, first)
+        wait(lambda: all(self.battery[i].msg for i in IDS), "battery messages")
+        self.assertGreater(self.battery[1].msg.percentage, 0.9)
+        self.assertEqual(self.battery[1].msg.power_supply_technology, BatteryState.POWER_SUPPLY_TECHNOLOGY_LIPO)
+
+    def test_2_refusals_leave_the_simulation_running(self):
+        self.call_fails(lambda: self.services[1, "land"](blocking=True), "land refused: UAV 1 is LANDED_ARMED")
+        self.call_fails(lambda: self.services[2, "go_to_waypoint"](waypoint=pose_at(1, 1, 1), blocking=True),
+                        "go_to_waypoint refused")
+        self.call_fails(lambda: self.services[1, "take_off"](height=float("nan"), blocking=True), "height")
+        answer = self.spawn(SpawnModelRequest(name="uav_2", kind="obstacle", shape="cube", dimensions=[1, 1, 1]))
+        self.assertFalse(answer.success)
+        self.assertIn("name: 'uav_2' is taken", answer.message)
+        answer = self.spawn(SpawnModelRequest(name="uav_9", kind="uav", uav_id=2, airframe="iris"))
+        self.assertFalse(answer.success)
+        self.assertIn("uav_id: 2", answer.message)
+        answer = self.spawn(SpawnModelRequest(name="x", kind="obstacle", shape="cube", dimensions=[1, float("nan"), 1]))
+        self.assertFalse(answer.success)
+        self.assertIn("dimensions", answer.message)
+        self.assertFalse(self.delete(name="nothing_here").success)
+        before = self.clock.msg.clock
+        rospy.sleep(0.3)
+        self.assertGreater(self.clock.msg.clock, before)
+
+    def test_3_take_off_blocking_and_not(self):
+        starts = {i: self.position(i) for i in IDS}
+        self.services[1, "take_off"](height=2.0, blocking=True)
+        self.settle()
+        self.assertEqual(self.state_of(1), State.FLYING_AUTO)
+        self.assertAlmostEqual(self.position(1)[2], 2.0, delta=0.2)
+        for i in (2, 3):
+            self.services[i, "take_off"](height=2.0, blocking=False)
+        self.assertEqual({self.state_of(i) for i in (2, 3)} - {State.TAKING_OFF, State.LANDED_ARMED}, set())
+        wait(lambda: all(self.state_of(i) == State.TAKING_OFF for i in (2, 3)), "TAKING_OFF after take_off")
+        wait(lambda: all(self.state_of(i) == State.FLYING_AUTO for i in (2, 3)), "FLYING_AUTO")
+        self.call_fails(lambda: self.services[1, "take_off"](height=1.0, blocking=True),
+                        "take_off refused: UAV 1 is FLYING_AUTO")
+        for i in IDS:
+            self.assertLess(math.dist(self.position(i)[:2], starts[i][:2]), 0.01)
+        transform = self.tf_buffer.lookup_transform("map", "uav_1/base_link", rospy.Time(0), rospy.Duration(5))
+        self.assertAlmostEqual(transform.transform.translation.z, self.position(1)[2], delta=0.15)
+
+    def test_4_set_pose_set_velocity_and_bad_setpoints(self):
+        targets = {i: (1.5, self.position(i)[1], 2.5) for i in IDS}
+        self.stream(lambda i: self.set_pose[i].publish(pose_at(*targets[i], yaw=math.pi / 2)), 6.0)
+        for i in IDS:
+            self.assertLess(math.dist(self.position(i), targets[i]), 0.1)
+            q = self.pose[i].msg.pose.orientation
+            self.assertAlmostEqual(2 * math.atan2(q.z, q.w), math.pi / 2, delta=0.05)
+        before = {i: self.position(i) for i in IDS}
+        twist = TwistStamped()
+        twist.header.frame_id = "map"
+        twist.twist.linear.y = 0.5
+        self.stream(lambda i: self.set_velocity[i].publish(twist), 2.0)
+        for i in IDS:
+            self.assertAlmostEqual(self.velocity[i].msg.twist.linear.y, 0.5, delta=0.05)
+            self.assertAlmostEqual(self.position(i)[1] - before[i][1], 1.0, delta=0.3)
+        wait(lambda: all(abs(self.velocity[i].msg.twist.linear.y) < 0.02 for i in IDS),
+             "the hover after set_velocity stops (velocity timeout)")
+        rospy.sleep(3.0)  # the hold position was taken while still moving: let it settle back
+        held = {i: self.position(i) for i in IDS}
+        self.stream(lambda i: self.set_pose[i].publish(pose_at(float("nan"), 0, 2)), 1.0)
+        for i in IDS:
+            self.assertLess(math.dist(self.position(i), held[i]), 0.05)
+
+    def test_5_collision_with_a_spawned_obstacle(self):
+        x, y, _ = self.position(3)
+        answer = self.spawn(SpawnModelRequest(name="wall", kind="obstacle", shape="cube", dimensions=[0.4, 2, 4],
+                                              pose=pose_at(x + 2.0, y, 2.0).pose))
+        self.assertTrue(answer.success, answer.message)
+        self.services[3, "go_to_waypoint"](waypoint=pose_at(x + 4.0, y, 2.5), blocking=True)
+        hits = [c for c in self.collisions.all if c.agent_id == 3 and c.other_kind == "obstacle"]
+        self.assertEqual([c.other_name for c in hits][:1], ["wall"])
+        self.assertTrue(self.delete(name="wall").success)
+        self.services[3, "go_to_waypoint"](waypoint=pose_at(x, y, 2.5), blocking=True)
+
+    def test_6_go_to_and_land_where_they_started(self):
+        for i in IDS:
+            y = (i - 2) * 2.0
+            self.services[i, "go_to_waypoint"](waypoint=pose_at(0.0, y, 1.5), blocking=True)
+            self.settle()
+            self.assertLess(math.dist(self.position(i), (0.0, y, 1.5)), 0.33)
+        self.services[1, "land"](blocking=True)
+        self.settle()
+        self.assertEqual(self.state_of(1), State.LANDED_ARMED)
+        for i in (2, 3):
+            self.services[i, "land"](blocking=False)
+        wait(lambda: all(self.state_of(i) == State.LANDED_ARMED for i in IDS), "all landed")
+        for i in IDS:
+            self.assertLess(self.position(i)[2], 0.06)
+        self.assertLess(self.battery[1].msg.percentage, 1.0)
+
+    def stream(self, publish, sim_seconds):
+        deadline = rospy.get_rostime() + rospy.Duration(sim_seconds)
+        while rospy.get_rostime() < deadline:
+            for i in IDS:
+                publish(i)
+            rospy.sleep(0.05)
+
+
+if __name__ == "__main__":
+    rospy.init_node("ual_api_test")
+    rostest.rosrun("magna_sim", "ual_api", UalApi, sys.argv)
