@@ -27,16 +27,20 @@ def test_bad_parameters_stop_the_node_with_a_named_field(fresh_ros_master, tmp_p
     assert "airframe: " in output and "zeppelin.json: no such airframe" in output
 
 
-@pytest.fixture
-def sim(fresh_ros_master):
+def start_sim(master, *params):
     import rosgraph
 
-    fresh_ros_master.spawn(["rosparam", "set", "/use_sim_time", "true"]).wait(timeout=30)
-    node = fresh_ros_master.spawn(["rosrun", "magna_sim", "sim", "_uavs:=2", "_real_time_factor:=5"],
-                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    master = rosgraph.Master("/test", master_uri=fresh_ros_master.uri)
-    wait_until(lambda: master.hasParam("/ual_ids") and len(master.getParam("/ual_ids")) == 2, "two UAL ids",
-               timeout=60)
+    master.spawn(["rosparam", "set", "/use_sim_time", "true"]).wait(timeout=30)
+    node = master.spawn(["rosrun", "magna_sim", "sim", "_uavs:=2", "_real_time_factor:=5", *params],
+                        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    ros = rosgraph.Master("/test", master_uri=master.uri)
+    wait_until(lambda: ros.hasParam("/ual_ids") and len(ros.getParam("/ual_ids")) == 2, "two UAL ids", timeout=60)
+    return node
+
+
+@pytest.fixture
+def sim(fresh_ros_master):
+    node = start_sim(fresh_ros_master)
     yield fresh_ros_master
     assert node.poll() is None, "the sim died during the test"
 
@@ -70,3 +74,37 @@ def test_fly_refusals_are_clear(sim):
     assert code == 1 and "no UAL server for UAV 7; /ual_ids = [1, 2]" in text
     code, text = fly(sim, "--id", "1", "land")
     assert code == 1 and "land refused: UAV 1 is LANDED_ARMED; land needs FLYING_AUTO" in text
+
+
+def test_dynamic_model_flies_through_the_same_api(fresh_ros_master):
+    node = start_sim(fresh_ros_master, "_flight_model:=dynamic", "_model:=typhoon_h480")
+    code, text = fly(fresh_ros_master, "--id", "1", "take_off", "1.5")
+    assert code == 0 and "uav 1: FLYING_AUTO" in text
+    assert abs(printed_position(text)[2] - 1.5) < 0.33
+    code, text = fly(fresh_ros_master, "--id", "1", "land")
+    assert code == 0 and "uav 1: LANDED_ARMED" in text and printed_position(text)[2] < 0.05
+    assert node.poll() is None
+
+
+def test_depth_camera_publishes_metric_images(fresh_ros_master):
+    node = start_sim(fresh_ros_master, "_depth_camera/enabled:=true", "_depth_camera/width:=32",
+                     "_depth_camera/height:=24")
+    script = (
+        "import rospy, numpy as np\n"
+        "from sensor_msgs.msg import Image, CameraInfo\n"
+        "from magna_msgs.srv import SpawnModel, SpawnModelRequest\n"
+        "rospy.init_node('depth_probe')\n"
+        "rospy.wait_for_service('/magna/sim/spawn_model', timeout=30)\n"
+        "wall = SpawnModelRequest(name='wall', kind='obstacle', shape='cube', dimensions=[1, 6, 6])\n"
+        "wall.pose.position.x, wall.pose.position.y, wall.pose.orientation.w = 3.0, -1.0, 1.0\n"
+        "assert rospy.ServiceProxy('/magna/sim/spawn_model', SpawnModel)(wall).success\n"
+        "rospy.sleep(0.5)\n"
+        "image = rospy.wait_for_message('/uav_1/camera/depth/image_raw', Image, timeout=30)\n"
+        "info = rospy.wait_for_message('/uav_1/camera/depth/camera_info', CameraInfo, timeout=30)\n"
+        "depth = np.frombuffer(image.data, dtype='<f4').reshape(image.height, image.width)\n"
+        "print(image.encoding, image.width, image.height, info.K[0] > 0, round(float(depth[6, 16]), 2))\n")
+    out = subprocess.run(["python", "-c", script], capture_output=True, text=True, timeout=90,
+                         env=fresh_ros_master.env())
+    # UAV 1 stands at (0, -1, 0) looking along +x; above the horizon (row 6) it sees the wall face at x = 2.5.
+    assert out.stdout.split() == ["32FC1", "32", "24", "True", "2.5"], out.stderr
+    assert node.poll() is None

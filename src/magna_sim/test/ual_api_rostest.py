@@ -15,9 +15,12 @@ from geometry_msgs.msg import PoseStamped, TwistStamped
 from magna_msgs.msg import CollisionEvent
 from magna_msgs.srv import DeleteModel, SpawnModel, SpawnModelRequest
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import BatteryState
+from sensor_msgs.msg import BatteryState, NavSatFix
+from std_srvs.srv import Empty
 from uav_abstraction_layer.msg import State
-from uav_abstraction_layer.srv import GoToWaypoint, Land, TakeOff
+from uav_abstraction_layer.srv import GoToWaypoint, GoToWaypointGeo, Land, SetHome, TakeOff
+
+from magna_sim.geo import enu_to_geodetic
 
 IDS = (1, 2, 3)
 
@@ -64,7 +67,9 @@ class UalApi(unittest.TestCase):
                             for i in IDS}
         cls.services = {}
         for i in IDS:
-            for name, kind in (("take_off", TakeOff), ("land", Land), ("go_to_waypoint", GoToWaypoint)):
+            for name, kind in (("take_off", TakeOff), ("land", Land), ("go_to_waypoint", GoToWaypoint),
+                               ("go_to_waypoint_geo", GoToWaypointGeo), ("set_home", SetHome),
+                               ("recover_from_manual", Empty)):
                 rospy.wait_for_service(f"/uav_{i}/ual/{name}", timeout=30)
                 cls.services[i, name] = rospy.ServiceProxy(f"/uav_{i}/ual/{name}", kind)
         rospy.wait_for_service("/magna/sim/spawn_model", timeout=30)
@@ -175,7 +180,25 @@ class UalApi(unittest.TestCase):
         self.assertTrue(self.delete(name="wall").success)
         self.services[3, "go_to_waypoint"](waypoint=pose_at(x, y, 2.5), blocking=True)
 
-    def test_6_go_to_and_land_where_they_started(self):
+    def test_6_geographic_waypoint_home_frame_and_manual_recovery(self):
+        origin = rospy.get_param("/magna_sim/map_origin_geo")
+        lat, lon, alt = enu_to_geodetic([1.0, -2.0, 2.0], origin)
+        self.services[1, "go_to_waypoint_geo"](waypoint=NavSatFix(latitude=lat, longitude=lon, altitude=alt),
+                                               blocking=True)
+        self.settle()
+        self.assertLess(math.dist(self.position(1), (1.0, -2.0, 2.0)), 0.33)
+        self.call_fails(lambda: self.services[1, "go_to_waypoint_geo"](
+            waypoint=NavSatFix(latitude=float("nan"), longitude=lon, altitude=alt), blocking=True), "finite")
+        self.services[1, "set_home"](set_z=False)
+        home = self.position(1)
+        self.services[1, "go_to_waypoint"](waypoint=pose_at(1.0, 0.0, 1.0, frame="uav_1_home"), blocking=True)
+        self.settle()
+        self.assertLess(math.dist(self.position(1), (home[0] + 1.0, home[1], 1.0)), 0.33)
+        self.call_fails(lambda: self.services[1, "go_to_waypoint"](waypoint=pose_at(0, 0, 1, frame="odom"),
+                                                                   blocking=True), "frame_id 'odom' is not known")
+        self.call_fails(lambda: self.services[1, "recover_from_manual"](), "UAV 1 is FLYING_AUTO")
+
+    def test_7_go_to_and_land_where_they_started(self):
         for i in IDS:
             y = (i - 2) * 2.0
             self.services[i, "go_to_waypoint"](waypoint=pose_at(0.0, y, 1.5), blocking=True)
