@@ -27,6 +27,16 @@ def run_until(world, condition, seconds):
     raise AssertionError(f"not reached within {seconds} s of sim time")
 
 
+def airborne(world, airframe, height, uav_id=1, position=(0.0, 0.0, 0.0), flight_model="light"):
+    """Spawn a UAV, take it off and return (vehicle, its UAL logic) once FLYING_AUTO."""
+    uav = world.spawn_uav(f"uav_{uav_id}", uav_id, airframe, flight_model, list(position))
+    ual = world.ual[uav_id]
+    world.step()
+    ual.take_off(height)
+    run_until(world, lambda: ual.state == UalState.FLYING_AUTO, 10)
+    return uav, ual
+
+
 @pytest.mark.parametrize("flight_model", ["light", "dynamic"])
 def test_take_off_go_to_and_land(world, flight_model):
     uav = world.spawn_uav("uav_1", 1, "iris", flight_model, [1.0, -1.0, 0.0])
@@ -49,11 +59,7 @@ def test_take_off_go_to_and_land(world, flight_model):
 
 
 def test_light_velocity_follows_a_first_order_lag(world):
-    uav = world.spawn_uav("uav_1", 1, "iris", "light", [0, 0, 0])
-    ual = world.ual[1]
-    world.step()
-    ual.take_off(1.0)
-    run_until(world, lambda: ual.state == UalState.FLYING_AUTO, 10)
+    uav, ual = airborne(world, "iris", 1.0)
     run(world, 2.0)
     ual.set_velocity([1.0, 0.0, 0.0], 0.0)
     tau = uav.airframe.limits.velocity_time_constant
@@ -68,11 +74,7 @@ def test_light_velocity_follows_a_first_order_lag(world):
 
 
 def test_speed_limits_cap_a_far_waypoint(world):
-    uav = world.spawn_uav("uav_1", 1, "crazyflie", "light", [0, 0, 0])
-    ual = world.ual[1]
-    world.step()
-    ual.take_off(1.0)
-    run_until(world, lambda: ual.state == UalState.FLYING_AUTO, 10)
+    uav, ual = airborne(world, "crazyflie", 1.0)
     ual.go_to([100.0, 0.0, 1.0], 0.0)
     peak = 0.0
     for _ in range(240 * 5):
@@ -112,11 +114,7 @@ def test_obstacle_contact_and_gentle_landing_is_not_a_collision(world):
 
 def test_hitting_the_ground_fast_is_a_collision():
     world = SimWorld(ual_settings=UalSettings(velocity_timeout=0.0))  # the dive must not time out
-    world.spawn_uav("uav_1", 1, "iris", "light", [0, 0, 0])
-    ual = world.ual[1]
-    world.step()
-    ual.take_off(3.0)
-    run_until(world, lambda: ual.state == UalState.FLYING_AUTO, 10)
+    _, ual = airborne(world, "iris", 3.0)
     ual.set_velocity([0.0, 0.0, -3.0], 0.0)
     contacts = run_until(world, lambda: world.vehicles[1].position[2] <= 0.0, 10)
     contacts += world.step()
@@ -178,11 +176,7 @@ def test_a_seed_makes_wind_reproducible():
 
 
 def test_an_empty_battery_makes_the_uav_land(world):
-    world.spawn_uav("uav_1", 1, "iris", "light", [0, 0, 0])
-    ual = world.ual[1]
-    world.step()
-    ual.take_off(2.0)
-    run_until(world, lambda: ual.state == UalState.FLYING_AUTO, 10)
+    _, ual = airborne(world, "iris", 2.0)
     world.drain_batteries(0.5 * 3600)  # half an hour at hover: more than an iris battery holds
     assert world.batteries[1].depleted
     assert ual.state == UalState.LANDING
