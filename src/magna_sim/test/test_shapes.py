@@ -1,15 +1,15 @@
 """Obstacle primitives: where their surfaces are (by ray casts), their meshes, and the errors on bad input."""
 import json
 import math
-from pathlib import Path
 
 import numpy as np
 import pybullet as p
 import pytest
 
 from magna_sim.shapes import SHAPES, ShapeError, create_obstacle, parse_shape, prism_mesh, torus_mesh
+from tests.support import CORPUS
 
-CORPUS_WORLDS = Path(__file__).resolve().parents[4] / "shared" / "ros_magna_corpus" / "Worlds"
+CORPUS_WORLDS = CORPUS / "Worlds"
 
 
 @pytest.fixture
@@ -146,8 +146,7 @@ def test_obstacles_are_static(client):
 
 
 def test_every_geometry_of_the_original_worlds_spawns(client):
-    if not CORPUS_WORLDS.is_dir():
-        pytest.skip(f"no corpus at {CORPUS_WORLDS}")
+    assert CORPUS_WORLDS.is_dir(), f"no corpus at {CORPUS_WORLDS}; set MAGNA_CORPUS to ros_magna_corpus"
     count = 0
     for path in sorted(CORPUS_WORLDS.glob("*/*.json")):
         for volume in json.loads(path.read_text())["scenario"]["volumes"]:

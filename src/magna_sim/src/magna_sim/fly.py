@@ -72,6 +72,8 @@ def run(args) -> None:
         _service(ns + "go_to_waypoint", GoToWaypoint)(waypoint=target, blocking=wait)
     elif args.command == "velocity":
         publisher = rospy.Publisher(ns + "set_velocity", TwistStamped, queue_size=1)
+        _wait_wall(lambda: publisher.get_num_connections() > 0, f"{ns}set_velocity to have its subscriber")
+        _wait_wall(lambda: not rospy.Time.now().is_zero(), "the clock (is /clock published?)")
         command = TwistStamped()
         command.header.frame_id = "map"
         command.twist.linear.x, command.twist.linear.y, command.twist.linear.z = args.vx, args.vy, args.vz
@@ -84,6 +86,17 @@ def run(args) -> None:
     pose = rospy.wait_for_message(ns + "pose", PoseStamped, timeout=10.0).pose.position
     names = {v: k for k, v in vars(State).items() if k.isupper()}
     print(f"uav {args.id}: {names.get(state.state, state.state)} at ({pose.x:.2f}, {pose.y:.2f}, {pose.z:.2f})")
+
+
+def _wait_wall(condition, what: str, seconds: float = 10.0) -> None:
+    """Wait on wall time: sim time may not be running yet, which is what we wait for."""
+    import time
+
+    deadline = time.monotonic() + seconds
+    while not condition():
+        if time.monotonic() > deadline:
+            raise LookupError(f"timed out after {seconds} s waiting for {what}")
+        time.sleep(0.01)
 
 
 def _service(name, kind):
