@@ -110,19 +110,19 @@ def main() -> int:
         for uavs in (1, 10, 50):
             rate = physics_steps_per_second(model, uavs, args.physics_seconds)
             rows.append((f"physics only, {model}, {uavs} UAVs", rate, rate / 240.0))
-    print(f"{'measurement':42} {'steps/s':>10} {'real-time factor':>17}")
+    print(f"{'measurement':50} {'steps/s':>10} {'real-time factor':>17}")
     for name, rate, rtf in rows:
-        print(f"{name:42} {rate:10.0f} {rtf:16.1f}x")
+        print(f"{name:50} {rate:10.0f} {rtf:16.1f}x")
     light10 = next(r for r in rows if r[0] == "physics only, light, 10 UAVs")[2]
     dynamic10 = next(r for r in rows if r[0] == "physics only, dynamic, 10 UAVs")[2]
-    print(f"{'light / dynamic, 10 UAVs':42} {'':>10} {light10 / dynamic10:16.2f}")
-    print(f"{'dynamic 10 UAVs / gym-pybullet-drones (2x)':42} {'':>10} "
+    print(f"{'light / dynamic, 10 UAVs':50} {'':>10} {light10 / dynamic10:16.2f}")
+    print(f"{'dynamic 10 UAVs / gym-pybullet-drones (2x)':50} {'':>10} "
           f"{dynamic10 / GYM_PYBULLET_DRONES_RTF:16.2f}")
     sys.stdout.flush()
     for subscribe in (False, True):  # each in its own process: rospy allows one init_node per process
         rtf = _in_child(args.seconds, subscribe)
         label = "node, 10 light UAVs, 30 Hz UAL" + (", all subscribed" if subscribe else "")
-        print(f"{label:42} {'':>10} {rtf:16.1f}x   ({rtf / TARGET_RTF:.2f} of the 10x target)")
+        print(f"{label:50} {'':>10} {rtf:16.1f}x   ({rtf / TARGET_RTF:.2f} of the 10x target)")
     return 0
 
 
