@@ -149,17 +149,16 @@ class SimWorld:
 
     # --- time ------------------------------------------------------------------------------------------------
     def step(self) -> list[Contact]:
-        for kind, model in self.models.items():
-            group = [v for v in self.vehicles.values() if v.flight_model == kind]
-            if group:
-                velocity, yaw_rate = guidance.velocity_commands(group)
-                model.apply_controls(group, velocity, yaw_rate)
+        groups = [(model, [v for v in self.vehicles.values() if v.flight_model == kind])
+                  for kind, model in self.models.items()]
+        groups = [(model, group) for model, group in groups if group]
+        for model, group in groups:
+            velocity, yaw_rate = guidance.velocity_commands(group)
+            model.apply_controls(group, velocity, yaw_rate)
         p.stepSimulation(physicsClientId=self.client)
         self.steps += 1
-        for kind, model in self.models.items():
-            group = [v for v in self.vehicles.values() if v.flight_model == kind]
-            if group:
-                model.read_state(group)
+        for model, group in groups:
+            model.read_state(group)
         now = self.time
         for logic in self.ual.values():
             logic.update(now)
