@@ -32,13 +32,14 @@ from uav_abstraction_layer.srv import (
 from . import geo
 from .command_queue import CommandQueue, LoopStopped
 from .ual_logic import CommandRefused, UalLogic, UalState
+from .vehicle import yaw_from_quaternion
 
 MAP_FRAME = "map"
 
 
 def quaternion_yaw(q) -> float:
-    x, y, z, w = q.x, q.y, q.z, q.w
-    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    """Yaw of a geometry_msgs/Quaternion."""
+    return yaw_from_quaternion(q.x, q.y, q.z, q.w)
 
 
 def rotate_into_body(orientation_xyzw, vector) -> tuple[float, float, float]:
@@ -124,8 +125,9 @@ class UalServer:
     # --- streamed setpoints ----------------------------------------------------------------------------------
     def _on_set_pose(self, msg: PoseStamped) -> None:
         try:
-            position = self._to_map(msg.header.frame_id, msg.pose.position)
-            self.queue.run(lambda: self.logic.set_pose(position, quaternion_yaw(msg.pose.orientation)))
+            # Converted in the loop: the home frame moves with set_home, which runs there too.
+            self.queue.run(lambda: self.logic.set_pose(self._to_map(msg.header.frame_id, msg.pose.position),
+                                                       quaternion_yaw(msg.pose.orientation)))
         except (CommandRefused, LoopStopped) as err:
             rospy.logwarn_throttle(2.0, f"/uav_{self.uav_id}/ual/set_pose ignored: {err}")
 
@@ -152,9 +154,9 @@ class UalServer:
 
     def _go_to_waypoint(self, req):
         pose = req.waypoint.pose
-        position = self._service_guard("go_to_waypoint",
-                                       lambda: self._to_map(req.waypoint.header.frame_id, pose.position))
-        self._command("go_to_waypoint", lambda: self.logic.go_to(position, quaternion_yaw(pose.orientation)),
+        self._command("go_to_waypoint",
+                      lambda: self.logic.go_to(self._to_map(req.waypoint.header.frame_id, pose.position),
+                                               quaternion_yaw(pose.orientation)),
                       req.blocking, self.logic.reached)
         return GoToWaypointResponse()
 

@@ -66,11 +66,7 @@ class UalLogic:
 
     def land(self) -> None:
         self._require(UalState.FLYING_AUTO, "land")
-        # Aim below the floor so the descent never stalls just above it; touching down ends it.
-        target = np.array([self.vehicle.position[0], self.vehicle.position[1], -1.0])
-        self._command(Setpoint(SetpointMode.POSITION, position=target, yaw=self.vehicle.yaw,
-                               max_vertical_speed=self.settings.land_speed))
-        self.state = UalState.LANDING
+        self._start_landing()
 
     def go_to(self, position, yaw: float) -> None:
         position = _finite_vector("waypoint.pose.position", position)
@@ -80,8 +76,7 @@ class UalLogic:
 
     def failsafe_land(self) -> None:
         """Land whatever was commanded (empty battery); the commander sees LANDING."""
-        self.state = UalState.FLYING_AUTO
-        self.land()
+        self._start_landing()
 
     def set_pose(self, position, yaw: float) -> None:
         """Streamed position setpoint; refused (the ROS layer only warns) unless FLYING_AUTO."""
@@ -140,6 +135,13 @@ class UalLogic:
         if self.state != state:
             raise CommandRefused(f"{command} refused: UAV {self.vehicle.uav_id} is {self.state.name}; "
                                  f"{command} needs {state.name}")
+
+    def _start_landing(self) -> None:
+        # Aim below the floor so the descent never stalls just above it; touching down ends it.
+        target = np.array([self.vehicle.position[0], self.vehicle.position[1], -1.0])
+        self._command(Setpoint(SetpointMode.POSITION, position=target, yaw=self.vehicle.yaw,
+                               max_vertical_speed=self.settings.land_speed))
+        self.state = UalState.LANDING
 
     def _command(self, setpoint: Setpoint) -> None:
         self.vehicle.setpoint = setpoint

@@ -40,6 +40,11 @@ class Setpoint:
     max_vertical_speed: float | None = None
 
 
+def yaw_from_quaternion(x: float, y: float, z: float, w: float) -> float:
+    """Heading (rotation about z) of a quaternion; a zero quaternion reads as 0, as UAL treats it."""
+    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
 class Vehicle:
     """A UAV in the world. Arrays are in the map frame; the body origin is the bottom centre."""
 
@@ -64,8 +69,7 @@ class Vehicle:
     def orientation(self, quaternion) -> None:
         # The heading is read many times per step (guidance, UAL checks): work it out once per change.
         self._orientation = quaternion
-        x, y, z, w = quaternion
-        self.yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+        self.yaw = yaw_from_quaternion(*quaternion)
 
     def set_attitude(self, orientation: np.ndarray, yaw: float) -> None:
         """Set the orientation when the caller already knows its yaw (saves the setter's atan2)."""
