@@ -1,151 +1,37 @@
 """Obstacle primitives of the world files as static pybullet bodies.
 
-`dimensions` follow the original ROS-MAGNA world JSON, where a geometry's
-dimensions are the scale of its rviz marker and of its Gazebo model
-(Worlds/Geometries.py and Worlds/PoseElements.py of JoseAndresMR/ros_magna):
-
-=========  ===========================================  ==========================================
-shape      dimensions                                   body, in the frame of `position`/`orientation`
-=========  ===========================================  ==========================================
-cube       [size_x, size_y, size_z] full edge lengths   box centred on the origin
-sphere     [diameter, diameter, diameter]               sphere centred on the origin
-cylinder   [diameter, diameter, height]                 cylinder centred on the origin, axis z
-torus      [2R, 2R + 2r, 2r]: centre-line diameter,     ring about the z axis, centred on the origin
-           outer diameter, tube diameter
-prism      [height, [[x, y, z], ...]] base vertices     the polygon (x, y) extruded from z = 0 up to
-           (or [height] plus the `vertices` argument,   z = height: the base lies in the origin's
-           as the world_config spawn service sends it)  xy plane, not centred
-=========  ===========================================  ==========================================
-
-Examples from the real worlds (ros_magna_corpus/Worlds): Gym/1Obs_Central_Cylinder.json has
-a torus [6.0, 9.0, 3.0] (R = 3, r = 1.5, so it spans 1.5 .. 4.5 m from its axis) around
-a cylinder [3.0, 3.0, 3.0] that exactly fills its hole; the Gazebo spawner used radius
-dimensions[0]/2 for spheres and cylinders and dimensions[2] as the cylinder length.
-A prism vertex's z is ignored, as in the original, whose prism worlds give 0
-(e.g. Code/JSONs/Worlds/GAUSSUseCase1/CropField.json: [10.0, [[-210,-125,0], ...]]).
-
-Pybullet has no ellipsoid, elliptic cylinder or torus: unequal diameters are refused,
-and the torus is a closed triangle mesh (a concave trimesh, fine for static bodies). A
-convex prism is a convex hull; a non-convex one a concave trimesh. Mesh facets lie on the
-true surface at their vertices and at most ~0.5% of a radius inside it between them.
+The shapes, their dimension conventions and their checks live in
+`magna_worlds.shapes` (the world model owns them); this module only turns a
+checked shape into a pybullet body. Pybullet has no torus: it becomes a closed
+triangle mesh (a concave trimesh, fine for static bodies). A convex prism is a
+convex hull; a non-convex one a concave trimesh.
 """
 from __future__ import annotations
-
-import math
-from dataclasses import dataclass
-from numbers import Real
-from typing import Any
 
 import numpy as np
 import pybullet as p
 
-SHAPES = ("cube", "sphere", "cylinder", "torus", "prism")
-TORUS_RING_SEGMENTS = 64  # around the z axis
-TORUS_TUBE_SEGMENTS = 32  # around the tube
+from magna_worlds.shapes import SHAPES, ShapeError, ShapeSpec, finite_vector, parse_shape, prism_mesh, torus_mesh
 
-_USAGE = {
-    "cube": "a cube needs [size_x, size_y, size_z] (full edge lengths, m)",
-    "sphere": "a sphere needs [diameter, diameter, diameter] (m, the three equal)",
-    "cylinder": "a cylinder needs [diameter, diameter, height] (m, axis z, the two diameters equal)",
-    "torus": "a torus needs [2R, 2R + 2r, 2r]: centre-line diameter, outer diameter, tube diameter (m)",
-    "prism": "a prism needs [height, [[x, y, z], ...]] with 3 or more base vertices, "
-             "or [height] and the vertices argument",
-}
-
-
-class ShapeError(ValueError):
-    """Bad obstacle input; the message starts with the field and says how to fix it."""
-
-
-@dataclass(frozen=True)
-class ShapeSpec:
-    """A checked obstacle description (see the module docstring for the conventions)."""
-
-    shape: str
-    dimensions: tuple[float, ...]  # prism: (height,)
-    polygon: tuple[tuple[float, float], ...] = ()  # prism only: base vertices, counter-clockwise
-
-    @property
-    def convex(self) -> bool:
-        return self.shape != "torus" and (self.shape != "prism" or _is_convex(np.array(self.polygon)))
-
-
-def parse_shape(shape: Any, dimensions: Any, vertices: Any = None) -> ShapeSpec:
-    """Check `shape`/`dimensions`/`vertices`; raise ShapeError naming the field."""
-    if shape not in SHAPES:
-        raise ShapeError(f"shape: unknown shape {shape!r}; use one of {', '.join(SHAPES)}")
-    dims = _sequence(dimensions, "dimensions", _USAGE[shape])
-    if shape == "prism":
-        return _parse_prism(dims, vertices)
-    if vertices is not None:
-        raise ShapeError(f"vertices: only a prism has vertices; a {shape} takes none (pass None)")
-    if len(dims) != 3:
-        raise ShapeError(f"dimensions: {_USAGE[shape]}, got {len(dims)} value(s)")
-    d = tuple(_positive(v, f"dimensions[{i}]", _USAGE[shape]) for i, v in enumerate(dims))
-    if shape == "sphere" and not (math.isclose(d[0], d[1]) and math.isclose(d[0], d[2])):
-        raise ShapeError(f"dimensions: {_USAGE['sphere']}; ellipsoids are not supported, got {list(d)}")
-    if shape == "cylinder" and not math.isclose(d[0], d[1]):
-        raise ShapeError(f"dimensions: {_USAGE['cylinder']}; elliptic cylinders are not supported, got {list(d)}")
-    if shape == "torus":
-        if not math.isclose(d[1], d[0] + d[2], rel_tol=1e-6):
-            raise ShapeError(f"dimensions[1]: {_USAGE['torus']}; the outer diameter must be "
-                             f"{d[0]} + {d[2]} = {d[0] + d[2]}, got {d[1]}")
-        if d[2] > d[0]:
-            raise ShapeError(f"dimensions[2]: {_USAGE['torus']}; the tube diameter {d[2]} must not exceed "
-                             f"the centre-line diameter {d[0]} (the ring would overlap itself)")
-    return ShapeSpec(shape, d)
+__all__ = ["SHAPES", "ShapeError", "ShapeSpec", "create_obstacle", "parse_shape", "prism_mesh", "torus_mesh"]
 
 
 def create_obstacle(client: int, shape: str, dimensions, vertices=None, position=(0.0, 0.0, 0.0),
                     orientation_xyzw=(0.0, 0.0, 0.0, 1.0), rgba=(0.5, 0.5, 0.5, 1.0)) -> int:
     """A static (mass 0) body for one obstacle; returns its pybullet body id."""
     spec = parse_shape(shape, dimensions, vertices)
-    pos = _finite_vector(position, 3, "position", "give [x, y, z] in metres")
-    quat = _finite_vector(orientation_xyzw, 4, "orientation_xyzw", "give a quaternion [x, y, z, w]")
+    pos = finite_vector(position, 3, "position", "give [x, y, z] in metres")
+    quat = finite_vector(orientation_xyzw, 4, "orientation_xyzw", "give a quaternion [x, y, z, w]")
     norm = float(np.linalg.norm(quat))
     if norm < 1e-9:
         raise ShapeError("orientation_xyzw: a zero quaternion is no rotation; use [0, 0, 0, 1] for none")
-    color = _finite_vector(rgba, 4, "rgba", "give [r, g, b, a], each 0..1")
+    color = finite_vector(rgba, 4, "rgba", "give [r, g, b, a], each 0..1")
     if np.any(color < 0.0) or np.any(color > 1.0):
         raise ShapeError(f"rgba: each component must be 0..1 (divide 0-255 colours by 255), got {color.tolist()}")
     collision, visual = _pybullet_shapes(client, spec, color.tolist())
     return p.createMultiBody(baseMass=0.0, baseCollisionShapeIndex=collision, baseVisualShapeIndex=visual,
                              basePosition=pos.tolist(), baseOrientation=(quat / norm).tolist(),
                              physicsClientId=client)
-
-
-def torus_mesh(major_radius: float, minor_radius: float, ring_segments: int = TORUS_RING_SEGMENTS,
-               tube_segments: int = TORUS_TUBE_SEGMENTS) -> tuple[np.ndarray, np.ndarray]:
-    """Closed torus about z: vertices (N, 3) and outward-facing (counter-clockwise) triangles (M, 3)."""
-    phi = np.arange(ring_segments) * (2.0 * np.pi / ring_segments)  # around z
-    theta = np.arange(tube_segments) * (2.0 * np.pi / tube_segments)  # around the tube
-    ph, th = np.meshgrid(phi, theta, indexing="ij")
-    rho = major_radius + minor_radius * np.cos(th)
-    vertices = np.stack([rho * np.cos(ph), rho * np.sin(ph), minor_radius * np.sin(th)], axis=-1).reshape(-1, 3)
-    i, j = np.meshgrid(np.arange(ring_segments), np.arange(tube_segments), indexing="ij")
-    i1, j1 = (i + 1) % ring_segments, (j + 1) % tube_segments
-
-    def at(a, b):
-        return (a * tube_segments + b).ravel()
-
-    # d/dphi x d/dtheta points outward, so (i,j) -> (i+1,j) -> (i+1,j+1) winds counter-clockwise outside.
-    triangles = np.concatenate([np.stack([at(i, j), at(i1, j), at(i1, j1)], axis=1),
-                                np.stack([at(i, j), at(i1, j1), at(i, j1)], axis=1)])
-    return vertices, triangles
-
-
-def prism_mesh(polygon, height: float) -> tuple[np.ndarray, np.ndarray]:
-    """Closed extrusion of a simple counter-clockwise polygon from z = 0 to z = height."""
-    base = np.asarray(polygon, dtype=float)
-    n = len(base)
-    vertices = np.vstack([np.column_stack([base, np.zeros(n)]), np.column_stack([base, np.full(n, height)])])
-    caps = _triangulate(base)
-    sides = []
-    for a in range(n):
-        b = (a + 1) % n
-        sides += [(a, b, n + b), (a, n + b, n + a)]  # outward for a counter-clockwise base
-    triangles = np.vstack([caps[:, ::-1], caps + n, np.array(sides)])  # bottom faces down, top faces up
-    return vertices, triangles
 
 
 # --- pybullet ---------------------------------------------------------------------------------------------------
@@ -176,141 +62,3 @@ def _pybullet_shapes(client: int, spec: ShapeSpec, rgba: list[float]) -> tuple[i
     visual = p.createVisualShape(p.GEOM_MESH, vertices=verts, indices=indices, rgbaColor=rgba,
                                  physicsClientId=client)
     return collision, visual
-
-
-# --- checks -----------------------------------------------------------------------------------------------------
-
-def _parse_prism(dims: list, vertices: Any) -> ShapeSpec:
-    usage = _USAGE["prism"]
-    if len(dims) == 2:
-        if vertices is not None:
-            raise ShapeError("vertices: given twice (in dimensions[1] and in the vertices argument); keep one")
-        vertices, where = dims[1], "dimensions[1]"
-    elif len(dims) == 1:
-        if vertices is None:
-            raise ShapeError(f"vertices: missing; {usage}")
-        where = "vertices"
-    else:
-        raise ShapeError(f"dimensions: {usage}, got {len(dims)} values")
-    height = _positive(dims[0], "dimensions[0]", usage + " (the height)")
-    raw = _sequence(vertices, where, usage)
-    points = []
-    for k, vertex in enumerate(raw):
-        xyz = _sequence(vertex, f"{where}[{k}]", "a vertex is [x, y] or [x, y, z]")
-        if len(xyz) not in (2, 3):
-            raise ShapeError(f"{where}[{k}]: a vertex is [x, y] or [x, y, z], got {len(xyz)} value(s)")
-        points.append([_finite(xyz[0], f"{where}[{k}][0]"), _finite(xyz[1], f"{where}[{k}][1]")])
-    if len(points) > 3 and points[0] == points[-1]:
-        points.pop()  # a polygon closed by repeating its first vertex
-    if len(points) < 3:
-        raise ShapeError(f"{where}: {usage}, got {len(points)} vertex(es)")
-    for k, point in enumerate(points):
-        if point in points[:k]:
-            raise ShapeError(f"{where}[{k}]: repeats vertex {points.index(point)}; give each corner once")
-    poly = np.array(points)
-    crossing = _self_intersection(poly)
-    if crossing is not None:
-        raise ShapeError(f"{where}: the polygon's edges {crossing[0]} and {crossing[1]} cross; list the "
-                         "vertices in order around the boundary")
-    area = _signed_area(poly)
-    scale = float(np.ptp(poly, axis=0).max()) or 1.0
-    if abs(area) <= 1e-9 * scale * scale:
-        raise ShapeError(f"{where}: the base polygon has no area (repeated or collinear vertices); "
-                         "give the corners of a real polygon in order")
-    if area < 0:
-        poly = poly[::-1]  # either winding is accepted; the meshes want counter-clockwise
-    return ShapeSpec("prism", (height,), tuple((float(x), float(y)) for x, y in poly))
-
-
-def _sequence(value: Any, where: str, usage: str) -> list:
-    if isinstance(value, (str, bytes, dict)) or not hasattr(value, "__len__") or not hasattr(value, "__getitem__"):
-        raise ShapeError(f"{where}: expected a list; {usage}, got {value!r}")
-    return list(value)
-
-
-def _finite(value: Any, where: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, Real) or not math.isfinite(value):
-        raise ShapeError(f"{where}: expected a finite number, got {value!r}")
-    return float(value)
-
-
-def _positive(value: Any, where: str, usage: str) -> float:
-    x = _finite(value, where)
-    if x <= 0.0:
-        raise ShapeError(f"{where}: must be positive; {usage}, got {x}")
-    return x
-
-
-def _finite_vector(value: Any, n: int, where: str, usage: str) -> np.ndarray:
-    items = _sequence(value, where, usage)
-    if len(items) != n:
-        raise ShapeError(f"{where}: {usage}, got {len(items)} value(s)")
-    return np.array([_finite(v, f"{where}[{i}]") for i, v in enumerate(items)])
-
-
-# --- 2-D polygon helpers ----------------------------------------------------------------------------------------
-
-def _cross(o, a, b) -> float:
-    return float((a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]))
-
-
-def _signed_area(poly: np.ndarray) -> float:
-    x, y = poly[:, 0], poly[:, 1]
-    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
-
-
-def _is_convex(poly: np.ndarray) -> bool:
-    n = len(poly)
-    return all(_cross(poly[i], poly[(i + 1) % n], poly[(i + 2) % n]) >= 0.0 for i in range(n))
-
-
-def _segments_cross(a, b, c, d) -> bool:
-    """Whether closed segments ab and cd share a point."""
-    d1, d2, d3, d4 = _cross(c, d, a), _cross(c, d, b), _cross(a, b, c), _cross(a, b, d)
-    if ((d1 > 0) != (d2 > 0) and d1 != 0 and d2 != 0) and ((d3 > 0) != (d4 > 0) and d3 != 0 and d4 != 0):
-        return True
-
-    def on(p_, q, r):  # r collinear with pq and inside its box
-        return (min(p_[0], q[0]) <= r[0] <= max(p_[0], q[0]) and min(p_[1], q[1]) <= r[1] <= max(p_[1], q[1]))
-
-    return ((d1 == 0 and on(c, d, a)) or (d2 == 0 and on(c, d, b)) or (d3 == 0 and on(a, b, c))
-            or (d4 == 0 and on(a, b, d)))
-
-
-def _self_intersection(poly: np.ndarray) -> tuple[int, int] | None:
-    """The first pair of non-adjacent edges that touch, as edge indices (edge i runs from vertex i to i+1)."""
-    n = len(poly)
-    for i in range(n):
-        for j in range(i + 1, n):
-            if j == i + 1 or (i == 0 and j == n - 1):
-                continue  # neighbours share a vertex by construction
-            if _segments_cross(poly[i], poly[(i + 1) % n], poly[j], poly[(j + 1) % n]):
-                return i, j
-    return None
-
-
-def _triangulate(poly: np.ndarray) -> np.ndarray:
-    """Ear clipping of a simple counter-clockwise polygon; triangles (n-2, 3) of vertex indices."""
-    remaining = list(range(len(poly)))
-    triangles = []
-    while len(remaining) > 3:
-        for k in range(len(remaining)):
-            a, b, c = remaining[k - 1], remaining[k], remaining[(k + 1) % len(remaining)]
-            if _cross(poly[a], poly[b], poly[c]) <= 0.0:
-                continue  # reflex or flat corner: not an ear
-            if any(_inside_triangle(poly[q], poly[a], poly[b], poly[c]) for q in remaining if q not in (a, b, c)):
-                continue
-            triangles.append((a, b, c))
-            remaining.pop(k)
-            break
-        else:  # only flat corners left (collinear runs): drop one, it adds no area
-            flat = next(k for k in range(len(remaining))
-                        if _cross(poly[remaining[k - 1]], poly[remaining[k]],
-                                  poly[remaining[(k + 1) % len(remaining)]]) == 0.0)
-            remaining.pop(flat)
-    triangles.append(tuple(remaining))
-    return np.array(triangles, dtype=int)
-
-
-def _inside_triangle(q, a, b, c) -> bool:
-    return _cross(a, b, q) >= 0.0 and _cross(b, c, q) >= 0.0 and _cross(c, a, q) >= 0.0

@@ -1,0 +1,425 @@
+"""Read a world JSON file (ros_magna format, DESIGN.md §3) into `model` objects, checking every field once.
+
+Every error is a `WorldError` naming the file and the JSON path. A volume written
+`{"name": "JSON", "world": W, "subworld": S}` includes the volumes of
+`<worlds root>/W/S.json`, looked up first next to the including file (its world
+folder's parent), then in each folder of `search_path`.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Iterable
+from numbers import Real
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from magna_worlds.errors import WorldError, join_path
+from magna_worlds.model import (
+    MATRIX_TYPES,
+    POSE_SET_TYPES,
+    SENSES,
+    SHAPES_FOR_ZIGZAG,
+    USES,
+    Geometry,
+    ObstacleSpec,
+    OrientationSpec,
+    PoseSetSpec,
+    Volume,
+    World,
+)
+from magna_worlds.shapes import SHAPES, ShapeError, parse_shape
+from magna_worlds.transforms import Frame
+
+PROJECT_WORLDS = Path(__file__).resolve().parents[4] / "worlds"  # <repo>/worlds, beside src/
+
+
+def default_search_path() -> list[Path]:
+    """Where included worlds are looked for after the including file's own root: $MAGNA_WORLDS_PATH, then worlds/."""
+    extra = [Path(p) for p in os.environ.get("MAGNA_WORLDS_PATH", "").split(os.pathsep) if p]
+    return [*extra, PROJECT_WORLDS]
+
+
+def load_world(path, search_path: Iterable[Path] | None = None) -> World:
+    """Load and check a world file; raises WorldError."""
+    path = Path(path)
+    data = _read_json(path, str(path))
+    return world_from_data(data, str(path), base=path.parent.parent,
+                           search_path=default_search_path() if search_path is None else list(search_path))
+
+
+def world_from_data(data: Any, source: str, base: Path | None = None,
+                    search_path: Iterable[Path] = ()) -> World:
+    """Check already-parsed JSON (a whole `{"scenario": ...}` or a bare list of volumes, as missions inline it)."""
+    reader = _Loader(list(search_path))
+    if isinstance(data, list):
+        data = {"scenario": {"volumes": data}}
+        boundaries_required = False
+    else:
+        boundaries_required = True
+    return reader.world(data, source, base, boundaries_required)
+
+
+def find_world_file(world: str, subworld: str, search_path: Iterable[Path]) -> Path | None:
+    for root in search_path:
+        candidate = Path(root) / world / f"{subworld}.json"
+        if candidate.is_file():
+            return candidate
+    return None
+
+
+def _read_json(path: Path, source: str) -> Any:
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise WorldError(source, "", "no such file; check the path") from None
+    except OSError as err:
+        raise WorldError(source, "", f"cannot read it: {err.strerror}") from None
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as err:
+        raise WorldError(source, "", f"not valid JSON: {err.msg} at line {err.lineno} column {err.colno}") from None
+
+
+class _Loader:
+    def __init__(self, search_path: list[Path]):
+        self.search_path = search_path
+        self.included: list[str] = []
+        self.warnings: list[str] = []
+        self._stack: list[str] = []
+
+    # --- world and volumes ------------------------------------------------------------------------------------
+
+    def world(self, data: Any, source: str, base: Path | None, boundaries_required: bool) -> World:
+        self._stack.append(str(Path(source).resolve()) if base is not None else source)
+        f = _Fields(source)
+        scenario = f.object(f.key(data, "", "scenario"), "scenario")
+        boundaries = None
+        if "world_boundaries" in scenario or boundaries_required:
+            boundaries = f.boundaries(f.key(scenario, "scenario", "world_boundaries"), "scenario.world_boundaries")
+        origin_geo = None
+        if "origin_geo" in scenario:
+            lat, lon, alt = f.numbers(scenario["origin_geo"], "scenario.origin_geo", 3,
+                                      "[latitude, longitude, altitude]")
+            if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
+                raise WorldError(source, "scenario.origin_geo", f"latitude must be -90..90 and longitude -180..180 "
+                                 f"degrees, got {lat}, {lon}")
+            origin_geo = (lat, lon, alt)
+        self._unknown(f, scenario, "scenario", {"world_boundaries", "origin_geo", "volumes"})
+        volumes = self.volumes(f, f.list(f.key(scenario, "scenario", "volumes"), "scenario.volumes"),
+                               "scenario.volumes", base)
+        names: dict[str, str] = {}
+        for volume in volumes:
+            if volume.name in names:
+                raise WorldError(volume.source, join_path(volume.source_path, "name"),
+                                 f"volume {volume.name!r} is defined twice (also {names[volume.name]}); "
+                                 "give each volume its own name")
+            names[volume.name] = f"{volume.source}: {volume.source_path}"
+        self._stack.pop()
+        if boundaries is None:
+            boundaries = np.array([[-math.inf, math.inf]] * 3)
+        return World(source, boundaries, origin_geo, tuple(volumes), tuple(self.included), tuple(self.warnings))
+
+    def volumes(self, f: _Fields, items: list, path: str, base: Path | None) -> list[Volume]:
+        volumes: list[Volume] = []
+        for index, item in enumerate(items):
+            where = join_path(path, index)
+            obj = f.object(item, where)
+            if obj.get("name") == "JSON":
+                volumes.extend(self.include(f, obj, where, base))
+            else:
+                volumes.append(self.volume(f, obj, where))
+        return volumes
+
+    def include(self, f: _Fields, obj: dict, where: str, base: Path | None) -> list[Volume]:
+        world = f.text(f.key(obj, where, "world"), join_path(where, "world"))
+        subworld = f.text(f.key(obj, where, "subworld"), join_path(where, "subworld"))
+        roots = ([base] if base is not None else []) + self.search_path
+        found = find_world_file(world, subworld, roots)
+        if found is None:
+            looked = ", ".join(str(Path(r) / world / f"{subworld}.json") for r in roots) or "nowhere (no search path)"
+            raise WorldError(f.source, where, f"included world {world}/{subworld} not found; looked at {looked}. "
+                             "Fix world/subworld or add its folder to MAGNA_WORLDS_PATH")
+        key = str(found.resolve())
+        if key in self._stack:
+            chain = " -> ".join(self._stack)
+            raise WorldError(f.source, where, f"{world}/{subworld} includes itself (through {chain}); remove the loop")
+        self.included.append(str(found))
+        nested = self.world(_read_json(found, str(found)), str(found), found.parent.parent, boundaries_required=False)
+        return list(nested.volumes)
+
+    def volume(self, f: _Fields, obj: dict, where: str) -> Volume:
+        name = f.text(f.key(obj, where, "name"), join_path(where, "name"))
+        prefix = f.text(f.key(obj, where, "prefix"), join_path(where, "prefix"))
+        origin = f.origin(f.key(obj, where, "origin"), join_path(where, "origin"))
+        permits = f.text(obj.get("permits", ""), join_path(where, "permits"), allow_empty=True)
+        self._unknown(f, obj, where, {"name", "prefix", "origin", "permits", "geometries"})
+        geometries = []
+        for index, item in enumerate(f.list(f.key(obj, where, "geometries"), join_path(where, "geometries"))):
+            geometry = self.geometry(f, f.object(item, join_path(join_path(where, "geometries"), index)),
+                                     join_path(join_path(where, "geometries"), index))
+            if any(g.name == geometry.name for g in geometries):
+                raise WorldError(f.source, join_path(geometry.source_path, "name"),
+                                 f"volume {name!r} already has a geometry named {geometry.name!r}; rename one")
+            geometries.append(geometry)
+        return Volume(name, prefix, origin, permits, tuple(geometries), f.source, where)
+
+    # --- geometries ---------------------------------------------------------------------------------------------
+
+    def geometry(self, f: _Fields, obj: dict, where: str) -> Geometry:
+        name = f.text(f.key(obj, where, "name"), join_path(where, "name"))
+        prefix = f.text(f.key(obj, where, "prefix"), join_path(where, "prefix"))
+        shape = f.key(obj, where, "shape")
+        try:
+            spec = parse_shape(shape, f.key(obj, where, "dimensions"))
+        except ShapeError as err:
+            raise _shape_error(f.source, where, err) from None
+        gid = obj.get("id", 0)
+        if isinstance(gid, bool) or not isinstance(gid, int):
+            raise WorldError(f.source, join_path(where, "id"), f"expected an integer, got {gid!r}")
+        origin = f.origin(f.key(obj, where, "origin"), join_path(where, "origin"))
+        color = f.numbers(obj.get("color", [128, 128, 128]), join_path(where, "color"), 3, "[r, g, b], each 0-255")
+        if any(c < 0 or c > 255 for c in color):
+            raise WorldError(f.source, join_path(where, "color"), f"each component must be 0-255, got {list(color)}")
+        alpha = f.number(obj.get("alpha", 1.0), join_path(where, "alpha"))
+        if not 0.0 <= alpha <= 1.0:
+            raise WorldError(f.source, join_path(where, "alpha"), f"must be 0..1 (0 invisible, 1 opaque), got {alpha}")
+        self._unknown(f, obj, where, {"name", "prefix", "shape", "id", "origin", "dimensions", "color", "alpha",
+                                      "poses_sets"})
+        sets_path = join_path(where, "poses_sets")
+        sets = tuple(self.pose_set(f, f.object(item, join_path(sets_path, i)), join_path(sets_path, i), spec.shape)
+                     for i, item in enumerate(f.list(obj.get("poses_sets", []), sets_path)))
+        return Geometry(name, prefix, spec, gid, origin, tuple(c / 255.0 for c in color), alpha, sets, where)
+
+    # --- pose sets ------------------------------------------------------------------------------------------------
+
+    def pose_set(self, f: _Fields, obj: dict, where: str, shape: str) -> PoseSetSpec:
+        kind = f.choice(f.key(obj, where, "type"), join_path(where, "type"), POSE_SET_TYPES)
+        use = f.choice(obj.get("use", "poses"), join_path(where, "use"), USES)
+        common: dict[str, Any] = {"type": kind, "use": use, "source_path": where}
+        known = {"type", "use", "poses_orientation", "set_orientation", "obstacles_shape", "obstacles_dimensions"}
+        if "poses_orientation" in obj:
+            common["orientation"] = f.orientation(obj["poses_orientation"], join_path(where, "poses_orientation"))
+        if "set_orientation" in obj:
+            common["set_yaw"] = f.numbers(obj["set_orientation"], join_path(where, "set_orientation"), 3,
+                                          "[roll, pitch, yaw] in radians")[2]
+        if use == "obstacles":
+            common["obstacle"] = self.obstacle(f, obj, where)
+        if kind == "matrix":
+            known |= {"matrix_type", "dimensions", "density"}
+            matrix_type = f.choice(obj.get("matrix_type", "dimension"), join_path(where, "matrix_type"), MATRIX_TYPES)
+            dims_path = join_path(where, "dimensions")
+            if matrix_type == "dimension":
+                dims = f.numbers(f.key(obj, where, "dimensions"), dims_path, 3, "[count_x, count_y, count_z]")
+                for axis, n in enumerate(dims):
+                    if n != int(n) or n < 1:
+                        raise WorldError(f.source, join_path(dims_path, axis), "a dimension matrix counts poses per "
+                                         f"axis: a whole number >= 1, got {n}")
+            else:
+                dims = f.numbers(f.key(obj, where, "dimensions"), dims_path, 3,
+                                 "[spacing_x, spacing_y, spacing_z] in m")
+                for axis, s in enumerate(dims):
+                    if s <= 0:
+                        raise WorldError(f.source, join_path(dims_path, axis), f"a spacing must be positive, got {s}")
+            density = f.number(obj.get("density", 1.0), join_path(where, "density"))
+            if not 0.0 < density <= 1.0:
+                raise WorldError(f.source, join_path(where, "density"), "the share of cells kept must be in (0, 1], "
+                                 f"got {density}")
+            common.update(matrix_type=matrix_type, matrix_dimensions=tuple(dims), density=density)
+        elif kind == "random":
+            known |= {"quantity"}
+            quantity = f.key(obj, where, "quantity")
+            if isinstance(quantity, bool) or not isinstance(quantity, int) or quantity < 1:
+                raise WorldError(f.source, join_path(where, "quantity"),
+                                 f"expected a whole number >= 1, got {quantity!r}")
+            common["quantity"] = quantity
+        elif kind == "coordinates":
+            known |= {"coordinates"}
+            common["coordinates"] = f.poses(f.key(obj, where, "coordinates"), join_path(where, "coordinates"))
+        else:
+            known |= {"height", "spacing", "sweep_angle", "margins", "initial_sense", "orientation"}
+            if shape not in SHAPES_FOR_ZIGZAG:
+                raise WorldError(f.source, join_path(where, "type"), f"a zigzag sweeps a prism's polygon; this "
+                                 f"geometry is a {shape}. Make the geometry a prism or use another pose-set type")
+            spacing = f.numbers(f.key(obj, where, "spacing"), join_path(where, "spacing"), 2,
+                                "[along each line (0: its ends only), between lines] in m")
+            if spacing[1] <= 0 or spacing[0] < 0:
+                raise WorldError(f.source, join_path(where, "spacing"), "the distance between lines must be positive "
+                                 f"and the one along a line >= 0, got {list(spacing)}")
+            margins = f.numbers(obj.get("margins", [0.0, 0.0]), join_path(where, "margins"), 2,
+                                "[at the ends of each line, from the outer lines to the edge] in m")
+            if min(margins) < 0:
+                raise WorldError(f.source, join_path(where, "margins"), f"margins must be >= 0, got {list(margins)}")
+            if "orientation" in obj and "poses_orientation" not in obj:
+                common["orientation"] = f.orientation(obj["orientation"], join_path(where, "orientation"))
+            common.update(height=f.number(f.key(obj, where, "height"), join_path(where, "height")),
+                          spacing=tuple(spacing),
+                          sweep_angle=f.number(obj.get("sweep_angle", 0.0), join_path(where, "sweep_angle")),
+                          margins=tuple(margins),
+                          initial_sense=f.choice(obj.get("initial_sense", "right"), join_path(where, "initial_sense"),
+                                                 SENSES))
+        self._unknown(f, obj, where, known)
+        return PoseSetSpec(**common)
+
+    def obstacle(self, f: _Fields, obj: dict, where: str) -> ObstacleSpec:
+        shapes_path, dims_path = join_path(where, "obstacles_shape"), join_path(where, "obstacles_dimensions")
+        raw_shapes = f.key(obj, where, "obstacles_shape")
+        shapes = [raw_shapes] if isinstance(raw_shapes, str) else f.list(raw_shapes, shapes_path)
+        if not shapes:
+            raise WorldError(f.source, shapes_path, f"give at least one of {', '.join(SHAPES)}")
+        for i, s in enumerate(shapes):
+            f.choice(s, join_path(shapes_path, i), SHAPES)
+        dims = f.list(f.key(obj, where, "obstacles_dimensions"), dims_path)
+        if "prism" in shapes:
+            if shapes != ["prism"] * len(shapes):
+                raise WorldError(f.source, shapes_path, "a prism obstacle needs its own vertices; do not mix it with "
+                                 "other shapes in one set")
+            try:
+                spec = parse_shape("prism", dims)
+            except ShapeError as err:
+                raise _shape_error(f.source, where, err, rename={"dimensions": "obstacles_dimensions"}) from None
+            return ObstacleSpec(("prism",), ((spec.dimensions[0], spec.dimensions[0]),), spec.polygon)
+        if len(dims) != 3:
+            raise WorldError(f.source, dims_path, "give [d0, d1, d2] (fixed) or [[low, high], x3] (drawn per "
+                             f"obstacle) in the shape's convention, got {len(dims)} value(s)")
+        ranges = []
+        for axis, d in enumerate(dims):
+            at = join_path(dims_path, axis)
+            low, high = (d, d) if not isinstance(d, list) else f.numbers(d, at, 2, "[low, high]")
+            low, high = f.number(low, join_path(dims_path, axis)), f.number(high, join_path(dims_path, axis))
+            if not 0 < low <= high:
+                raise WorldError(f.source, join_path(dims_path, axis), f"need 0 < low <= high, got {low}, {high}")
+            ranges.append((low, high))
+        for i, s in enumerate(shapes):  # a fixed size must already be a valid shape (a torus's d1 = d0 + d2, ...)
+            if all(low == high for low, high in ranges) and s != "cube":
+                try:
+                    parse_shape(s, [low for low, _ in ranges])
+                except ShapeError as err:
+                    raise WorldError(f.source, dims_path, f"for obstacles_shape[{i}] ({s}): {err}") from None
+        return ObstacleSpec(tuple(shapes), tuple(ranges))
+
+    def _unknown(self, f: _Fields, obj: dict, where: str, known: set[str]) -> None:
+        for key in obj:
+            if key not in known:
+                self.warnings.append(f"{f.source}: {join_path(where, key)}: unknown field, ignored")
+
+
+def _shape_error(source: str, where: str, err: ShapeError, rename: dict[str, str] | None = None) -> WorldError:
+    """A ShapeError reads `dimensions[1]: ...`; put its field under the geometry's JSON path."""
+    field, _, message = str(err).partition(": ")
+    head, bracket, rest = field.partition("[")
+    head = (rename or {}).get(head, head)
+    return WorldError(source, f"{where}.{head}{bracket}{rest}", message)
+
+
+class _Fields:
+    """Typed reads of one file's JSON, each naming its JSON path on failure."""
+
+    def __init__(self, source: str):
+        self.source = source
+
+    def fail(self, where: str, message: str) -> WorldError:
+        return WorldError(self.source, where, message)
+
+    def key(self, obj: dict, where: str, key: str) -> Any:
+        if not isinstance(obj, dict):
+            raise self.fail(where, f"expected an object, got {type(obj).__name__}")
+        if key not in obj:
+            raise self.fail(join_path(where, key), "missing; add it (format: DESIGN.md §3)")
+        return obj[key]
+
+    def object(self, value: Any, where: str) -> dict:
+        if not isinstance(value, dict):
+            raise self.fail(where, f"expected an object {{...}}, got {type(value).__name__}")
+        return value
+
+    def list(self, value: Any, where: str) -> list:
+        if not isinstance(value, list):
+            raise self.fail(where, f"expected a list [...], got {type(value).__name__}")
+        return value
+
+    def text(self, value: Any, where: str, allow_empty: bool = False) -> str:
+        if not isinstance(value, str) or (not value and not allow_empty):
+            raise self.fail(where, f"expected a non-empty string, got {value!r}")
+        return value
+
+    def choice(self, value: Any, where: str, options) -> str:
+        if value not in options:
+            raise self.fail(where, f"unknown value {value!r}; use one of {', '.join(options)}")
+        return value
+
+    def number(self, value: Any, where: str) -> float:
+        if isinstance(value, bool) or not isinstance(value, Real) or not math.isfinite(value):
+            raise self.fail(where, f"expected a finite number, got {value!r}")
+        return float(value)
+
+    def numbers(self, value: Any, where: str, n: int, usage: str) -> tuple[float, ...]:
+        items = self.list(value, where)
+        if len(items) != n:
+            raise self.fail(where, f"expected {usage}, got {len(items)} value(s)")
+        return tuple(self.number(v, join_path(where, i)) for i, v in enumerate(items))
+
+    def origin(self, value: Any, where: str) -> Frame:
+        items = self.list(value, where)
+        if len(items) != 2:
+            raise self.fail(where, f"expected [[x, y, z], [roll, pitch, yaw]], got {len(items)} item(s)")
+        xyz = self.numbers(items[0], join_path(where, 0), 3, "[x, y, z] in m")
+        rpy = self.numbers(items[1], join_path(where, 1), 3, "[roll, pitch, yaw] in radians")
+        return Frame.from_xyz_rpy(xyz, rpy)
+
+    def boundaries(self, value: Any, where: str) -> np.ndarray:
+        items = self.list(value, where)
+        if len(items) != 3:
+            raise self.fail(where, f"expected [[xmin, xmax], [ymin, ymax], [zmin, zmax]], got {len(items)} item(s)")
+        rows = [self.numbers(item, join_path(where, i), 2, "[min, max]") for i, item in enumerate(items)]
+        for i, (low, high) in enumerate(rows):
+            if low >= high:
+                raise self.fail(join_path(where, i), f"min must be below max, got [{low}, {high}]")
+        return np.array(rows)
+
+    def orientation(self, value: Any, where: str) -> OrientationSpec:
+        if value == "random":
+            return OrientationSpec(any_rotation=True)
+        if value == "random_yaw":
+            return OrientationSpec(((0.0, 0.0), (0.0, 0.0), (-math.pi, math.pi)))
+        items = self.list(value, where)
+        if len(items) != 3:
+            raise self.fail(where, "expected [roll, pitch, yaw], [[low, high] x3], \"random_yaw\" or \"random\", "
+                            f"got {len(items)} value(s)")
+        ranges = []
+        for axis, item in enumerate(items):
+            if isinstance(item, list):
+                low, high = self.numbers(item, join_path(where, axis), 2, "[low, high] in radians")
+                if low > high:
+                    raise self.fail(join_path(where, axis), f"low must not exceed high, got [{low}, {high}]")
+            else:
+                low = high = self.number(item, join_path(where, axis))
+            ranges.append((low, high))
+        return OrientationSpec(tuple(ranges))
+
+    def poses(self, value: Any, where: str) -> tuple:
+        """[[[x, y, z], [roll, pitch, yaw] or [qx, qy, qz, qw]], ...] -> ((xyz, quaternion), ...)."""
+        from magna_worlds.transforms import quaternions_from_rpy
+
+        poses = []
+        for i, item in enumerate(self.list(value, where)):
+            at = join_path(where, i)
+            pair = self.list(item, at)
+            if len(pair) != 2:
+                raise self.fail(at, f"expected [[x, y, z], [roll, pitch, yaw]], got {len(pair)} item(s)")
+            xyz = self.numbers(pair[0], join_path(at, 0), 3, "[x, y, z] in m")
+            turn = self.list(pair[1], join_path(at, 1))
+            if len(turn) == 3:
+                quaternion = quaternions_from_rpy(self.numbers(turn, join_path(at, 1), 3, "[roll, pitch, yaw]"))[0]
+            else:
+                q = np.array(self.numbers(turn, join_path(at, 1), 4, "[roll, pitch, yaw] or [qx, qy, qz, qw]"))
+                if np.linalg.norm(q) < 1e-9:
+                    raise self.fail(join_path(at, 1), "a zero quaternion is no rotation; use [0, 0, 0, 1]")
+                quaternion = q / np.linalg.norm(q)
+            poses.append((xyz, tuple(float(v) for v in quaternion)))
+        if not poses:
+            raise self.fail(where, "give at least one pose [[x, y, z], [roll, pitch, yaw]]")
+        return tuple(poses)
