@@ -1,0 +1,230 @@
+"""The world node: holds the world parts, publishes their frames and markers, spawns their obstacles.
+
+All world logic lives in `registry` (no ROS); this module only turns requests and
+results into messages.
+"""
+from __future__ import annotations
+
+import argparse
+import threading
+from pathlib import Path
+
+import rospy
+from geometry_msgs.msg import Point, Pose, PoseArray, Quaternion, TransformStamped
+from magna_msgs.srv import (
+    AddWorldPart,
+    AddWorldPartResponse,
+    DeleteModel,
+    DeleteWorldPart,
+    DeleteWorldPartResponse,
+    GetFreeSpacePoseSet,
+    GetFreeSpacePoseSetResponse,
+    SpawnModel,
+    SpawnModelRequest,
+)
+from std_msgs.msg import ColorRGBA
+from tf2_msgs.msg import TFMessage
+from visualization_msgs.msg import MarkerArray
+
+from magna_worlds.errors import WorldError
+from magna_worlds.generate import ResolvedWorld
+from magna_worlds.markers import OBSTACLE_COLOR, world_markers
+from magna_worlds.query import QueryError
+from magna_worlds.registry import WorldRegistry, write_json_atomically
+
+HELP = """\
+magna_worlds world node: loads world parts (ROS-MAGNA world JSON), publishes every
+volume, geometry, free-space pose and obstacle as a static tf frame under `map`,
+their rviz markers on /magna/world/markers (visualization_msgs/MarkerArray, latched),
+and spawns the obstacles in magna_sim (/magna/sim/spawn_model) when it is running.
+
+Services (magna_msgs):
+  /magna/world/add          AddWorldPart: a world/subworld, or inline volumes (definition_json);
+                            both empty (or definition_json "from_hyperparameters") takes
+                            world/subworld from /magna/hyperparameters
+  /magna/world/get_fspset   GetFreeSpacePoseSet: [volume, geometry, kind, arg] -> map poses
+  /magna/world/delete       DeleteWorldPart: removes a part, its frames, markers and obstacles
+
+Private parameters (defaults):
+  ~world_file ("")          a world file loaded at start as part ~part_id
+  ~world (""), ~subworld ("")   or a world looked up as <worlds path>/<world>/<subworld>.json
+  ~part_id (main)           id of the part loaded at start
+  ~seed (/magna/hyperparameters/seed, else 0)   random poses and obstacles repeat per seed
+  ~worlds_path ([])         extra folders searched for worlds before MAGNA's worlds/
+  ~spawn_obstacles (true)   spawn obstacles in magna_sim if its spawn service appears
+  ~sim_wait (2.0)           seconds to wait for that service
+  ~record ("")              file the resolved world (every pose and obstacle) is written to
+
+Example: rosrun magna_worlds world _world:=Gym _subworld:=Four_Cylinders _seed:=1
+"""
+
+SPAWN_SERVICE = "/magna/sim/spawn_model"
+DELETE_SERVICE = "/magna/sim/delete_model"
+
+
+class WorldNode:
+    def __init__(self):
+        hyper = rospy.get_param("/magna/hyperparameters", {}) or {}
+        seed = int(rospy.get_param("~seed", hyper.get("seed", 0) or 0))
+        extra = [Path(p) for p in rospy.get_param("~worlds_path", [])]
+        self.registry = WorldRegistry(seed)
+        self.registry.search_path = extra + self.registry.search_path
+        self.spawn_obstacles = bool(rospy.get_param("~spawn_obstacles", True))
+        self.sim_wait = float(rospy.get_param("~sim_wait", 2.0))
+        self.record_path = rospy.get_param("~record", "")
+        self.lock = threading.Lock()
+        self.spawned: dict[str, list[str]] = {}  # part id -> obstacle models in the simulator
+        self.tf_pub = rospy.Publisher("/tf_static", TFMessage, queue_size=1, latch=True)
+        self.marker_pub = rospy.Publisher("/magna/world/markers", MarkerArray, queue_size=1, latch=True)
+        self._publish()
+        start_file = rospy.get_param("~world_file", "")
+        start_world, start_sub = rospy.get_param("~world", ""), rospy.get_param("~subworld", "")
+        part_id = rospy.get_param("~part_id", "main")
+        if start_file or start_world:
+            with self.lock:
+                if start_file:
+                    self.registry.add_file(part_id, start_file)
+                else:
+                    self.registry.add_named(part_id, start_world, start_sub)
+                self._after_add(part_id)
+        rospy.Service("/magna/world/add", AddWorldPart, self.handle_add)
+        rospy.Service("/magna/world/get_fspset", GetFreeSpacePoseSet, self.handle_get)
+        rospy.Service("/magna/world/delete", DeleteWorldPart, self.handle_delete)
+
+    # --- services ----------------------------------------------------------------------------------------------
+
+    def handle_add(self, req) -> AddWorldPartResponse:
+        with self.lock:
+            try:
+                definition = req.definition_json.strip()
+                if req.world:
+                    part = self.registry.add_named(req.id, req.world, req.subworld)
+                elif definition and definition != "from_hyperparameters":
+                    part = self.registry.add_inline(req.id, definition)
+                else:
+                    hyper = rospy.get_param("/magna/hyperparameters", {}) or {}
+                    if not hyper.get("world") or not hyper.get("subworld"):
+                        return AddWorldPartResponse(False, "world: empty, and /magna/hyperparameters has no "
+                                                    "world/subworld; give world and subworld or definition_json", [])
+                    part = self.registry.add_named(req.id, hyper["world"], hyper["subworld"])
+            except WorldError as err:
+                return AddWorldPartResponse(False, str(err), [])
+            message = self._after_add(req.id)
+            return AddWorldPartResponse(True, message, [child for _, child, _ in part.static_transforms()])
+
+    def handle_get(self, req) -> GetFreeSpacePoseSetResponse:
+        with self.lock:
+            try:
+                result = self.registry.resolve(list(req.definition))
+            except QueryError as err:
+                return GetFreeSpacePoseSetResponse(False, str(err), PoseArray(), [])
+            if result.new_frames:
+                self._publish()
+        poses = PoseArray(poses=[Pose(Point(*p), Quaternion(*q))
+                                 for p, q in zip(result.positions.tolist(), result.quaternions.tolist(), strict=True)])
+        poses.header.frame_id = "map"
+        poses.header.stamp = rospy.Time.now()
+        return GetFreeSpacePoseSetResponse(True, f"{len(result.frames)} pose(s)", poses, result.frames)
+
+    def handle_delete(self, req) -> DeleteWorldPartResponse:
+        with self.lock:
+            try:
+                self.registry.delete(req.id)
+            except KeyError as err:
+                return DeleteWorldPartResponse(False, err.args[0])
+            removed = self._delete_obstacles(req.id)
+            self._publish()
+            self._write_record()
+        return DeleteWorldPartResponse(True, f"deleted part {req.id!r} and {removed} obstacle(s) from the simulator")
+
+    # --- effects -----------------------------------------------------------------------------------------------
+
+    def _after_add(self, part_id: str) -> str:
+        part = self.registry.parts[part_id]
+        self._publish()
+        spawned = self._spawn_obstacles(part_id, part)
+        self._write_record()
+        rospy.loginfo("world part %r: %d volumes, %d poses, %d obstacles (%s)", part_id, len(part.world.volumes),
+                      part.pose_count(), len(part.obstacles()), spawned)
+        return (f"added part {part_id!r} from {part.world.source}: {len(part.world.volumes)} volume(s), "
+                f"{part.pose_count()} pose(s), {len(part.obstacles())} obstacle(s); {spawned}")
+
+    def _publish(self) -> None:
+        stamp = rospy.Time.now()
+        transforms = []
+        for parent, child, frame in self.registry.static_transforms():
+            t = TransformStamped()
+            t.header.stamp, t.header.frame_id, t.child_frame_id = stamp, parent, child
+            t.transform.translation.x, t.transform.translation.y, t.transform.translation.z = frame.translation
+            q = frame.quaternion()
+            t.transform.rotation.x, t.transform.rotation.y, t.transform.rotation.z, t.transform.rotation.w = q
+            transforms.append(t)
+        self.tf_pub.publish(TFMessage(transforms=transforms))
+        markers = world_markers(list(self.registry.parts.values()))
+        for marker in markers.markers:
+            marker.header.stamp = stamp
+        self.marker_pub.publish(markers)
+
+    def _spawn_obstacles(self, part_id: str, part: ResolvedWorld) -> str:
+        obstacles = part.obstacles()
+        if not obstacles:
+            return "no obstacles to spawn"
+        if not self.spawn_obstacles:
+            return "obstacles not spawned (~spawn_obstacles false)"
+        try:
+            rospy.wait_for_service(SPAWN_SERVICE, timeout=self.sim_wait)
+        except rospy.ROSException:
+            return f"obstacles not spawned: no simulator ({SPAWN_SERVICE} absent)"
+        spawn = rospy.ServiceProxy(SPAWN_SERVICE, SpawnModel)
+        done, failures = [], []
+        for o in obstacles:
+            req = SpawnModelRequest(name=o.name, kind="obstacle", shape=o.shape,
+                                    dimensions=list(o.dimensions) if o.shape != "prism" else [o.dimensions[0]],
+                                    vertices=[Point(x, y, 0.0) for x, y in o.polygon],
+                                    pose=Pose(Point(*o.position.tolist()), Quaternion(*o.quaternion.tolist())),
+                                    color=ColorRGBA(*OBSTACLE_COLOR))
+            try:
+                answer = spawn(req)
+            except rospy.ServiceException as err:
+                failures.append(f"{o.name}: {err}")
+                continue
+            if answer.success:
+                done.append(o.name)
+            else:
+                failures.append(f"{o.name}: {answer.message}")
+        self.spawned[part_id] = done
+        for failure in failures:
+            rospy.logerr("spawning obstacle %s", failure)
+        return f"{len(done)} obstacle(s) spawned in the simulator" + (f", {len(failures)} failed" if failures else "")
+
+    def _delete_obstacles(self, part_id: str) -> int:
+        names = self.spawned.pop(part_id, [])
+        if not names:
+            return 0
+        delete = rospy.ServiceProxy(DELETE_SERVICE, DeleteModel)
+        removed = 0
+        for name in names:
+            try:
+                removed += bool(delete(name).success)
+            except rospy.ServiceException as err:
+                rospy.logwarn("deleting obstacle %s: %s", name, err)
+        return removed
+
+    def _write_record(self) -> None:
+        if self.record_path:
+            write_json_atomically(self.record_path, self.registry.record())
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="rosrun magna_worlds world", description=HELP,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.parse_known_args(rospy.myargv(argv)[1:] if argv is None else argv)
+    rospy.init_node("magna_world")
+    try:
+        WorldNode()
+    except WorldError as err:
+        rospy.logfatal(str(err))
+        return 2
+    rospy.spin()
+    return 0
+
