@@ -16,6 +16,7 @@ import zlib
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from magna_worlds.errors import WorldError, join_path
 from magna_worlds.model import Geometry, ObstacleSpec, PoseSetSpec, Volume, World
@@ -90,15 +91,24 @@ class ResolvedWorld:
     def pose_count(self) -> int:
         return sum(len(s) for g in self.geometries for s in g.poses())
 
+    def frame_links(self) -> list[tuple[str, str]]:
+        """(parent, child) of every frame of the world, parents first (names only: cheap)."""
+        out = [("map", v.name) for v in self.world.volumes]
+        for g in self.geometries:
+            out.append((g.volume.name, g.frame_name))
+            out += [(g.frame_name, name) for s in g.poses() for name in s.frames]
+            out += [(g.frame_name, o.name) for o in g.obstacles]
+        return out
+
     def static_transforms(self) -> list[tuple[str, str, Frame]]:
         """(parent, child, child-in-parent) for every frame of the world, parents first."""
         out = [("map", v.name, self.volume_frames[v.name]) for v in self.world.volumes]
         for g in self.geometries:
             out.append((g.volume.name, g.frame_name, g.geometry.origin))
-            for s in g.pose_sets:
-                if s.spec.use == "poses":
-                    out += [(g.frame_name, name, Frame.from_xyz_quaternion(p, q))
-                            for name, p, q in zip(s.frames, s.local_positions, s.local_quaternions, strict=True)]
+            for s in g.poses():
+                rotations = Rotation.from_quat(s.local_quaternions).as_matrix() if len(s) else []
+                out += [(g.frame_name, name, Frame(p, r))
+                        for name, p, r in zip(s.frames, s.local_positions, rotations, strict=True)]
             out += [(g.frame_name, o.name, Frame.from_xyz_quaternion(o.local_position, o.local_quaternion))
                     for o in g.obstacles]
         return out
@@ -198,13 +208,21 @@ def _draw_dimensions(shape: str, spec: ObstacleSpec, rng: np.random.Generator) -
 
 def _check_unique_frames(resolved: ResolvedWorld) -> None:
     seen: dict[str, str] = {}
-    for parent, child, _ in resolved.static_transforms():
+    for parent, child in resolved.frame_links():
         if child in seen or child == "map":
-            where = next((g for g in resolved.geometries if g.frame_name == parent or g.volume.name == parent), None)
+            # the geometry publishing the second copy: a pose or obstacle under it, else its own frame (volume prefix
+            # and geometry name) under its volume
+            where = next((g for g in resolved.geometries if g.frame_name == parent), None)
+            field_name = "prefix"
+            if where is None:
+                where = next((g for g in resolved.geometries if g.volume.name == parent and g.frame_name == child),
+                             None)
+                field_name = "name"
             source = where.volume.source if where else resolved.world.source
-            path = join_path(where.geometry.source_path, "prefix") if where else ""
+            path = join_path(where.geometry.source_path, field_name) if where else ""
             raise WorldError(source, path, f"frame {child!r} would be published twice (under {seen.get(child, 'map')} "
-                             f"and {parent}); give the volumes or geometries distinct prefixes")
+                             f"and {parent}); give the volumes distinct prefixes or the geometries distinct "
+                             f"{field_name}s")
         seen[child] = parent
 
 

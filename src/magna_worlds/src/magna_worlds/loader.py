@@ -293,12 +293,11 @@ class _Loader:
             if not 0 < low <= high:
                 raise WorldError(f.source, join_path(dims_path, axis), f"need 0 < low <= high, got {low}, {high}")
             ranges.append((low, high))
-        for i, s in enumerate(shapes):  # a fixed size must already be a valid shape (a torus's d1 = d0 + d2, ...)
-            if all(low == high for low, high in ranges) and s != "cube":
-                try:
-                    parse_shape(s, [low for low, _ in ranges])
-                except ShapeError as err:
-                    raise WorldError(f.source, dims_path, f"for obstacles_shape[{i}] ({s}): {err}") from None
+        if "torus" in shapes and all(low == high for low, high in ranges):
+            try:  # a fixed torus must be one: [2R, 2R + 2r, 2r]; the other shapes take the sizes they need from it
+                parse_shape("torus", [low for low, _ in ranges])
+            except ShapeError as err:
+                raise WorldError(f.source, dims_path, f"for the torus obstacles: {err}") from None
         return ObstacleSpec(tuple(shapes), tuple(ranges))
 
     def _unknown(self, f: _Fields, obj: dict, where: str, known: set[str]) -> None:

@@ -14,9 +14,9 @@ centred in the shape's bounding box (turned by the set yaw for a prism) and the 
 whose centre lies inside the solid are kept. `density` keeps each cell with that
 probability. Zigzag: sweep lines `spacing[1]` apart, running at `sweep_angle` over
 a prism's polygon at `height` above its base, shortened by `margins[0]` at each end,
-the outer lines `margins[1]` inside the polygon; waypoints at each line's ends (and
-every `spacing[0]` metres along it when that is positive), the first line flown
-towards +x of the sweep (`"right"`) or -x (`"left"`), then alternating.
+centred across the polygon with the outer lines at least `margins[1]` inside it;
+waypoints at each line's ends (and every `spacing[0]` metres along it when that is
+positive), the first line flown towards +x of the sweep (`"right"`) or -x (`"left"`), then alternating.
 """
 from __future__ import annotations
 
@@ -122,9 +122,8 @@ def zigzag_layout(spec: ShapeSpec, pose_set: PoseSetSpec) -> np.ndarray:
         raise LayoutError(f"margins[1]: {side_margin:g} m from both sides leaves no room across the polygon "
                           f"({np.ptp(poly[:, 1]):g} m); use a smaller margin")
     count = int(math.floor((y_high - y_low) / between + 1e-9)) + 1
-    ys = y_low + between * np.arange(count)
-    if count == 1:
-        ys = np.array([(y_low + y_high) / 2.0])
+    spare = (y_high - y_low) - (count - 1) * between  # centre the lines: equal room at both sides
+    ys = y_low + spare / 2.0 + between * np.arange(count)
     eps = 1e-9 * max(1.0, float(np.ptp(poly)))
     ys_cut = np.clip(ys, poly[:, 1].min() + eps, poly[:, 1].max() - eps)  # a line along an edge still cuts
     points: list[np.ndarray] = []
@@ -148,8 +147,14 @@ def _line_pieces(poly: np.ndarray, y: float, end_margin: float, along: float) ->
     crossing = (start[:, 1] > y) != (end[:, 1] > y)
     s, e = start[crossing], end[crossing]
     xs = np.sort(s[:, 0] + (y - s[:, 1]) * (e[:, 0] - s[:, 0]) / (e[:, 1] - s[:, 1]))
-    pieces = []
+    stretches: list[list[float]] = []
     for a, b in zip(xs[0::2], xs[1::2], strict=True):
+        if stretches and a - stretches[-1][1] <= 1e-9:  # the line only touches a vertex here: one stretch
+            stretches[-1][1] = b
+        else:
+            stretches.append([a, b])
+    pieces = []
+    for a, b in stretches:
         a, b = a + end_margin, b - end_margin
         if b < a - 1e-12:
             continue
