@@ -197,7 +197,7 @@ def sample_uniform(spec: ShapeSpec, count: int, rng: np.random.Generator) -> np.
 def _sample_torus(major: float, minor: float, count: int, rng: np.random.Generator) -> np.ndarray:
     # Uniform in the tube's disc, then keep a sample with probability (R + rho cos theta) / (R + r): the outer
     # side of the ring holds more volume than the inner side. Acceptance is at least R / (R + r) >= 1/2.
-    chunks, have = [], 0
+    chunks, have = [np.empty((0, 3))], 0  # count 0 gives an empty (0, 3) array, as the other shapes do
     while have < count:
         n = 2 * (count - have) + 16
         rho = minor * np.sqrt(rng.random(n))
