@@ -14,6 +14,7 @@ import sys
 # Later capabilities (world, mission, run, replay, learn, voice) add their line here.
 COMMANDS: list[tuple[str, str]] = [
     ("doctor", "magna_master.doctor"),
+    ("world", "magna_worlds.cli"),
 ]
 
 
@@ -53,4 +54,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    # `python -m magna_master.cli` runs this file as __main__: call the imported module's main, so the
+    # UsageError that subcommands raise (magna_master.cli.UsageError) is the class caught there.
+    from magna_master.cli import main as imported_main
+
+    sys.exit(imported_main())

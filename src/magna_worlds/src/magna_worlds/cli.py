@@ -1,0 +1,228 @@
+"""`magna world`: check a world file and say what it holds, or draw it.
+
+    magna world check FILE [--seed N] [--json]
+    magna world draw FILE -o world.png [--seed N] [--elev E] [--azim A] [--force]
+
+A bad world file gets one line on stderr, `magna world: <file>: <json path>: <message>`,
+and exit status 2 (a `magna_master.cli.UsageError`, printed by `run`); nothing is written.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from collections import Counter
+from pathlib import Path
+
+HELP = "check a world file (load, lay out poses and obstacles, summarise) or draw it to a PNG"
+
+_EPILOG = """\
+examples:
+  magna world check worlds/Gym/1Obs_Central_Cylinder.json
+  magna world check worlds/Delivery/Delivery.json --seed 3 --json
+  magna world draw worlds/Delivery/Delivery.json -o delivery.png
+  magna world draw worlds/Gym/Empty.json -o gym.png --elev 60 --azim -90 --force
+"""
+
+_CHECK_EPILOG = """\
+The summary lists the file, the worlds it includes, the boundaries, origin_geo, then
+per volume its geometries (shape, tf frame, poses per pose-set type, obstacles),
+the totals and the time taken. Unknown fields are reported as warnings on stderr.
+A bad file prints one line `magna world: FILE: JSON.PATH: message` and exits 2.
+
+examples:
+  magna world check worlds/Gym/1Obs_Central_Cylinder.json
+  magna world check worlds/Delivery/Delivery.json --seed 3
+  magna world check worlds/Delivery/Delivery.json --json | python3 -m json.tool
+"""
+
+_DRAW_EPILOG = """\
+Geometries are drawn as translucent surfaces in their colour, obstacles as dark
+solids, poses as dots (one colour per pose set), zigzags as lines with their start
+marked. The view fits the content, with the same scale on every axis.
+
+examples:
+  magna world draw worlds/Delivery/Delivery.json -o delivery.png
+  magna world draw worlds/Gym/1Obs_Central_Cylinder.json -o gym.png --seed 4 --force
+  magna world draw worlds/Gym/Empty.json -o top.png --elev 90 --azim -90   # seen from above
+"""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.formatter_class = argparse.RawDescriptionHelpFormatter
+    parser.epilog = _EPILOG
+    sub = parser.add_subparsers(dest="world_command", metavar="ACTION", title="actions")
+    sub.required = True
+
+    check = sub.add_parser("check", help="load and lay out a world file; print what it holds",
+                           description="Load and lay out a world file, then print what it holds.",
+                           epilog=_CHECK_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    check.add_argument("file", metavar="FILE", help="world JSON file (e.g. worlds/<world>/<subworld>.json)")
+    _seed(check)
+    check.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    check.set_defaults(_world_run=_check)
+
+    draw = sub.add_parser("draw", help="draw a world file to a PNG",
+                          description="Draw a world file (geometries, obstacles, poses) to a PNG picture.",
+                          epilog=_DRAW_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    draw.add_argument("file", metavar="FILE", help="world JSON file (e.g. worlds/<world>/<subworld>.json)")
+    draw.add_argument("-o", "--output", required=True, metavar="PNG", help="picture to write (PNG)")
+    _seed(draw)
+    draw.add_argument("--elev", type=float, default=25.0, metavar="DEG",
+                      help="view elevation above the xy plane, degrees (default: %(default)s; 90: from above)")
+    draw.add_argument("--azim", type=float, default=-60.0, metavar="DEG",
+                      help="view azimuth about z, degrees (default: %(default)s)")
+    draw.add_argument("--title", help="title over the picture (default: file name, seed and counts)")
+    draw.add_argument("--force", action="store_true", help="overwrite PNG if it exists")
+    draw.set_defaults(_world_run=_draw)
+
+
+def _seed(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--seed", type=int, default=0, metavar="N",
+                        help="seed of the random pose sets and obstacles (default: %(default)s)")
+
+
+def run(args) -> int:
+    from magna_master.cli import UsageError
+
+    try:
+        return args._world_run(args)
+    except UsageError as error:
+        # Printed here, not left to magna_master.cli.main: when that module runs as __main__ (./magna runs
+        # `python -m magna_master.cli`) its UsageError is another class than the one imported here.
+        print(f"magna world: {error}", file=sys.stderr)
+        return 2
+
+
+# --- check ----------------------------------------------------------------------------------------------------
+
+def _load(path: str, seed: int):
+    """(resolved world, load seconds, resolve seconds); a WorldError becomes a one-line usage error."""
+    from magna_master.cli import UsageError
+    from magna_worlds.errors import WorldError
+    from magna_worlds.generate import resolve_world
+    from magna_worlds.loader import load_world
+
+    try:
+        start = time.perf_counter()
+        world = load_world(path)
+        loaded = time.perf_counter()
+        resolved = resolve_world(world, seed)
+        done = time.perf_counter()
+    except WorldError as error:
+        raise UsageError(" ".join(str(error).split())) from None  # one line, whatever the message holds
+    for warning in world.warnings:
+        print(f"magna world: warning: {warning}", file=sys.stderr)
+    return resolved, loaded - start, done - loaded
+
+
+def summary(resolved, load_seconds: float = 0.0, resolve_seconds: float = 0.0) -> dict:
+    """What `check` reports, as JSON-ready data."""
+    import numpy as np
+
+    world = resolved.world
+    volumes = []
+    for volume in world.volumes:
+        geometries = []
+        for placed in (g for g in resolved.geometries if g.volume is volume):
+            poses = Counter()
+            for pose_set in placed.poses():
+                poses[pose_set.spec.type] += len(pose_set)
+            geometries.append({
+                "name": placed.geometry.name, "shape": placed.geometry.spec.shape, "frame": placed.frame_name,
+                "poses": sum(poses.values()), "poses_by_type": dict(poses),
+                "obstacles": len(placed.obstacles),
+                "obstacles_by_shape": dict(Counter(o.shape for o in placed.obstacles)),
+            })
+        volumes.append({"name": volume.name, "prefix": volume.prefix, "permits": volume.permits,
+                        "source": volume.source, "geometries": geometries})
+    by_type = Counter()
+    for placed in resolved.geometries:
+        for pose_set in placed.poses():
+            by_type[pose_set.spec.type] += len(pose_set)
+    boundaries = world.boundaries.tolist() if np.isfinite(world.boundaries).all() else None
+    return {
+        "file": world.source, "included": list(world.included), "seed": resolved.seed,
+        "world_boundaries": boundaries, "origin_geo": list(world.origin_geo) if world.origin_geo else None,
+        "volumes": volumes,
+        "totals": {"volumes": len(world.volumes), "geometries": len(resolved.geometries),
+                   "poses": resolved.pose_count(), "poses_by_type": dict(by_type),
+                   "obstacles": len(resolved.obstacles()), "frames": len(resolved.static_transforms())},
+        "load_ms": round(load_seconds * 1e3, 3), "generate_ms": round(resolve_seconds * 1e3, 3),
+        "warnings": list(world.warnings),
+    }
+
+
+def _counts(by_type: dict) -> str:
+    return " (" + ", ".join(f"{kind} {n}" for kind, n in by_type.items()) + ")" if by_type else ""
+
+
+def format_summary(data: dict) -> str:
+    lines = [f"file        {data['file']}",
+             f"included    {', '.join(data['included']) if data['included'] else '(none)'}"]
+    if data["world_boundaries"] is None:
+        lines.append("boundaries  (none)")
+    else:
+        (x0, x1), (y0, y1), (z0, z1) = data["world_boundaries"]
+        lines.append(f"boundaries  x {x0:g}..{x1:g}  y {y0:g}..{y1:g}  z {z0:g}..{z1:g} m")
+    geo = data["origin_geo"]
+    lines.append(f"origin_geo  {'(none)' if geo is None else f'lat {geo[0]:g}, lon {geo[1]:g}, alt {geo[2]:g} m'}")
+    lines.append(f"seed        {data['seed']}")
+    rows = [g for v in data["volumes"] for g in v["geometries"]]
+    name_w = max([len(g["name"]) for g in rows] + [4])
+    frame_w = max([len(g["frame"]) for g in rows] + [4])
+    for volume in data["volumes"]:
+        permits = f", permits {volume['permits']}" if volume["permits"] else ""
+        source = f", from {volume['source']}" if volume["source"] != data["file"] else ""
+        lines.append("")
+        lines.append(f"volume {volume['name']} (prefix {volume['prefix']}{permits}{source})")
+        if not volume["geometries"]:
+            lines.append("  (no geometries)")
+        for g in volume["geometries"]:
+            lines.append(f"  {g['name']:<{name_w}}  {g['shape']:<8}  frame {g['frame']:<{frame_w}}  "
+                         f"poses {g['poses']}{_counts(g['poses_by_type'])}  "
+                         f"obstacles {g['obstacles']}{_counts(g['obstacles_by_shape'])}")
+    t = data["totals"]
+    lines.append("")
+    geometries = f"{t['geometries']} geometr{'y' if t['geometries'] == 1 else 'ies'}"
+    lines.append(f"totals      {t['volumes']} volume(s), {geometries}, "
+                 f"{t['poses']} pose(s){_counts(t['poses_by_type'])}, {t['obstacles']} obstacle(s), "
+                 f"{t['frames']} tf frame(s)")
+    lines.append(f"time        loaded in {data['load_ms']:.1f} ms, generated in {data['generate_ms']:.1f} ms")
+    if data["warnings"]:
+        lines.append(f"warnings    {len(data['warnings'])} (unknown fields, ignored; listed on stderr)")
+    return "\n".join(lines)
+
+
+def _check(args) -> int:
+    resolved, load_seconds, resolve_seconds = _load(args.file, args.seed)
+    data = summary(resolved, load_seconds, resolve_seconds)
+    print(json.dumps(data, indent=2) if args.json else format_summary(data))
+    return 0
+
+
+# --- draw -----------------------------------------------------------------------------------------------------
+
+def _draw(args) -> int:
+    from magna_master.cli import UsageError
+
+    output = Path(args.output)
+    if output.suffix.lower() != ".png":
+        raise UsageError(f"-o {output}: the picture is a PNG; name it *.png")
+    if not output.parent.is_dir():
+        raise UsageError(f"-o {output}: folder {output.parent} does not exist; create it first")
+    if output.exists() and not args.force:  # before any work: nothing is drawn for nothing
+        raise UsageError(f"{output}: already exists; pass --force to overwrite it")
+    resolved, _, _ = _load(args.file, args.seed)
+
+    from magna_worlds.draw import draw_world  # matplotlib: only when drawing
+
+    try:
+        draw_world(resolved, output, elev=args.elev, azim=args.azim, title=args.title, overwrite=args.force)
+    except FileExistsError as error:  # appeared while drawing
+        raise UsageError(str(error)) from None
+    except OSError as error:
+        raise UsageError(f"{output}: cannot write it: {error.strerror or error}") from None
+    print(output)
+    return 0
