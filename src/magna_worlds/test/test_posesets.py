@@ -700,3 +700,18 @@ def test_delivery_random_obstacle_density_and_names():
               for seed in range(40)]
     assert all(0 <= c <= 12 for c in counts)
     assert 40 * 12 * 0.3 - 5 * math.sqrt(40 * 12 * 0.21) <= sum(counts) <= 40 * 12 * 0.3 + 5 * math.sqrt(40 * 12 * 0.21)
+
+
+def boundary_world(z_of_geometry):
+    return {"scenario": {"world_boundaries": [[-5, 5], [-5, 5], [0, 10]], "volumes": [
+        {"name": "V", "prefix": "v", "origin": [[0, 0, 0], [0, 0, 0]], "geometries": [
+            {"name": "G", "prefix": "g", "shape": "cube", "origin": [[0, 0, z_of_geometry], [0, 0, 0]],
+             "dimensions": [2, 2, 2], "poses_sets": [{"type": "matrix", "dimensions": [2, 1, 1]}]}]}]}}
+
+
+def test_poses_outside_the_world_boundaries_are_refused():
+    assert resolve_world(world_from_data(boundary_world(5.0), "inside.json")).pose_count() == 2
+    with pytest.raises(WorldError) as err:
+        resolve_world(world_from_data(boundary_world(12.0), "outside.json"))
+    assert str(err.value).startswith("outside.json: scenario.volumes[0].geometries[0].poses_sets[0]: 2 poses fall "
+                                     "outside scenario.world_boundaries")

@@ -150,7 +150,10 @@ class WorldNodeTest(unittest.TestCase):
         self.assertFalse(self.get(["Extra", "Box", "matrix", "[1, 1, 0]"]).success)
         self.assertFalse(self.delete(id="extra").success)
 
-    def test_6_the_resolved_world_is_recorded(self):
+    def test_6_the_world_boundaries_are_a_parameter(self):
+        self.assertEqual(rospy.get_param("/magna/world/boundaries"), [[-30, 30], [-30, 30], [0, 20]])
+
+    def test_7_the_resolved_world_is_recorded(self):
         path = Path(rospy.get_param("/magna_world/record"))
         try:
             wait(path.exists, "the record file")

@@ -119,12 +119,27 @@ def set_rng(seed: int, volume: str, geometry: str, index: int) -> np.random.Gene
 
 
 def resolve_world(world: World, seed: int = 0) -> ResolvedWorld:
-    """Lay out every pose set and obstacle; raises WorldError for a set that cannot be laid out."""
+    """Lay out every pose set and obstacle; raises WorldError for a set that cannot be laid out, or whose
+    poses or obstacles fall outside the world boundaries (where UAVs may not fly)."""
     volume_frames = {v.name: v.origin for v in world.volumes}
     placed = [_place_geometry(v, g, seed) for v in world.volumes for g in v.geometries]
     resolved = ResolvedWorld(world, seed, volume_frames, placed)
     _check_unique_frames(resolved)
+    _check_inside_boundaries(resolved)
     return resolved
+
+
+def _check_inside_boundaries(resolved: ResolvedWorld) -> None:
+    low, high = resolved.world.boundaries[:, 0], resolved.world.boundaries[:, 1]
+    for g in resolved.geometries:
+        for s in g.pose_sets:
+            positions = s.positions if s.spec.use == "poses" else np.array([o.position for o in g.obstacles])
+            outside = np.flatnonzero(np.any((positions < low - 1e-9) | (positions > high + 1e-9), axis=1))
+            if len(outside):
+                point = positions[outside[0]].round(3).tolist()
+                raise WorldError(g.volume.source, s.spec.source_path, f"{len(outside)} {s.spec.use} fall outside "
+                                 f"scenario.world_boundaries {resolved.world.boundaries.tolist()}, e.g. {point} in "
+                                 "map; move the geometry or widen the boundaries")
 
 
 def _place_geometry(volume: Volume, geometry: Geometry, seed: int) -> PlacedGeometry:

@@ -9,6 +9,7 @@ import argparse
 import threading
 from pathlib import Path
 
+import numpy as np
 import rospy
 from geometry_msgs.msg import Point, Pose, PoseArray, Quaternion, TransformStamped
 from magna_msgs.srv import (
@@ -54,6 +55,9 @@ Private parameters (defaults):
   ~spawn_obstacles (true)   spawn obstacles in magna_sim if its spawn service appears
   ~sim_wait (2.0)           seconds to wait for that service
   ~record ("")              file the resolved world (every pose and obstacle) is written to
+
+Parameters set: /magna/world/origin_geo [lat, lon, alt] and /magna/world/boundaries
+[[xmin, xmax], [ymin, ymax], [zmin, zmax]] of the last part that has them.
 
 Example: rosrun magna_worlds world _world:=Gym _subworld:=Four_Cylinders _seed:=1
 """
@@ -141,6 +145,10 @@ class WorldNode:
 
     def _after_add(self, part_id: str) -> str:
         part = self.registry.parts[part_id]
+        if part.world.origin_geo:  # for nodes that convert to and from WGS84 (go_to_waypoint_geo, real UAVs)
+            rospy.set_param("/magna/world/origin_geo", list(part.world.origin_geo))
+        if np.isfinite(part.world.boundaries).all():
+            rospy.set_param("/magna/world/boundaries", part.world.boundaries.tolist())
         self._publish()
         spawned = self._spawn_obstacles(part_id, part)
         self._write_record()
