@@ -15,29 +15,11 @@ from magna_worlds.model import PoseSetSpec
 from magna_worlds.posesets import LayoutError, matrix_layout, zigzag_layout
 from magna_worlds.shapes import contains, parse_shape
 from magna_worlds.transforms import quaternions_from_rpy
+from tests.rotations import rpy_matrix, ry, rz
 from tests.support import CORPUS
 
 CORPUS_WORLDS = CORPUS / "Worlds"
 TOL = 1e-9
-
-
-def rx(a):
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
-
-
-def ry(a):
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
-
-
-def rz(a):
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
-
-
-def rpy_matrix(rpy):
-    return rz(rpy[2]) @ ry(rpy[1]) @ rx(rpy[0])
 
 
 def corpus_worlds():

@@ -5,21 +5,7 @@ import numpy as np
 import pytest
 
 from magna_worlds.transforms import Frame, quaternions_from_rpy, rotate_quaternions, rotation_from_rpy
-
-
-def rx(a):
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
-
-
-def ry(a):
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
-
-
-def rz(a):
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+from tests.rotations import rx, ry, rz
 
 
 def quat_to_matrix(q):
