@@ -32,7 +32,7 @@ from magna_worlds.model import (
     World,
 )
 from magna_worlds.shapes import SHAPES, ShapeError, parse_shape
-from magna_worlds.transforms import Frame
+from magna_worlds.transforms import Frame, quaternions_from_rpy
 
 PROJECT_WORLDS = Path(__file__).resolve().parents[4] / "worlds"  # <repo>/worlds, beside src/
 
@@ -69,6 +69,11 @@ def find_world_file(world: str, subworld: str, search_path: Iterable[Path]) -> P
         if candidate.is_file():
             return candidate
     return None
+
+
+def candidate_paths(world: str, subworld: str, search_path: Iterable[Path]) -> str:
+    """Where `find_world_file` looked, for an error message."""
+    return ", ".join(str(Path(r) / world / f"{subworld}.json") for r in search_path) or "nowhere (no search path)"
 
 
 def _read_json(path: Path, source: str) -> Any:
@@ -140,7 +145,7 @@ class _Loader:
         roots = ([base] if base is not None else []) + self.search_path
         found = find_world_file(world, subworld, roots)
         if found is None:
-            looked = ", ".join(str(Path(r) / world / f"{subworld}.json") for r in roots) or "nowhere (no search path)"
+            looked = candidate_paths(world, subworld, roots)
             raise WorldError(f.source, where, f"included world {world}/{subworld} not found; looked at {looked}. "
                              "Fix world/subworld or add its folder to MAGNA_WORLDS_PATH")
         key = str(found.resolve())
@@ -401,8 +406,6 @@ class _Fields:
 
     def poses(self, value: Any, where: str) -> tuple:
         """[[[x, y, z], [roll, pitch, yaw] or [qx, qy, qz, qw]], ...] -> ((xyz, quaternion), ...)."""
-        from magna_worlds.transforms import quaternions_from_rpy
-
         poses = []
         for i, item in enumerate(self.list(value, where)):
             at = join_path(where, i)

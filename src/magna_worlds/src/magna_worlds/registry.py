@@ -13,7 +13,13 @@ from pathlib import Path
 
 from magna_worlds.errors import WorldError
 from magna_worlds.generate import ResolvedWorld, resolve_world, world_record
-from magna_worlds.loader import default_search_path, find_world_file, load_world, world_from_data
+from magna_worlds.loader import (
+    candidate_paths,
+    default_search_path,
+    find_world_file,
+    load_world,
+    world_from_data,
+)
 from magna_worlds.query import PoseQueries, QueryResult
 from magna_worlds.transforms import Frame
 
@@ -34,7 +40,7 @@ class WorldRegistry:
     def add_named(self, part_id: str, world: str, subworld: str) -> ResolvedWorld:
         found = find_world_file(world, subworld, self.search_path)
         if found is None:
-            looked = ", ".join(str(Path(r) / world / f"{subworld}.json") for r in self.search_path)
+            looked = candidate_paths(world, subworld, self.search_path)
             raise WorldError(f"{world}/{subworld}", "", f"no such world; looked at {looked}")
         return self.add_file(part_id, found)
 

@@ -114,7 +114,7 @@ class WorldNode:
             except WorldError as err:
                 return AddWorldPartResponse(False, str(err), [])
             message = self._after_add(req.id)
-            return AddWorldPartResponse(True, message, [child for _, child, _ in part.static_transforms()])
+            return AddWorldPartResponse(True, message, [child for _, child in part.frame_links()])
 
     def handle_get(self, req) -> GetFreeSpacePoseSetResponse:
         with self.lock:
@@ -122,8 +122,8 @@ class WorldNode:
                 result = self.registry.resolve(list(req.definition))
             except QueryError as err:
                 return GetFreeSpacePoseSetResponse(False, str(err), PoseArray(), [])
-            if result.new_frames:
-                self._publish()
+            if result.new_frames:  # query frames have no markers: only tf changes
+                self._publish_frames()
         poses = PoseArray(poses=[Pose(Point(*p), Quaternion(*q))
                                  for p, q in zip(result.positions.tolist(), result.quaternions.tolist(), strict=True)])
         poses.header.frame_id = "map"
@@ -158,6 +158,11 @@ class WorldNode:
                 f"{part.pose_count()} pose(s), {len(part.obstacles())} obstacle(s); {spawned}")
 
     def _publish(self) -> None:
+        """Frames and markers of every part: after a part is added or deleted."""
+        self._publish_frames()
+        self._publish_markers()
+
+    def _publish_frames(self) -> None:
         stamp = rospy.Time.now()
         transforms = []
         for parent, child, frame in self.registry.static_transforms():
@@ -168,6 +173,9 @@ class WorldNode:
             t.transform.rotation.x, t.transform.rotation.y, t.transform.rotation.z, t.transform.rotation.w = q
             transforms.append(t)
         self.tf_pub.publish(TFMessage(transforms=transforms))
+
+    def _publish_markers(self) -> None:
+        stamp = rospy.Time.now()
         markers = world_markers(list(self.registry.parts.values()))
         for marker in markers.markers:
             marker.header.stamp = stamp
@@ -187,7 +195,7 @@ class WorldNode:
         done, failures = [], []
         for o in obstacles:
             req = SpawnModelRequest(name=o.name, kind="obstacle", shape=o.shape,
-                                    dimensions=list(o.dimensions) if o.shape != "prism" else [o.dimensions[0]],
+                                    dimensions=list(o.dimensions),  # a prism's is its height only
                                     vertices=[Point(x, y, 0.0) for x, y in o.polygon],
                                     pose=Pose(Point(*o.position.tolist()), Quaternion(*o.quaternion.tolist())),
                                     color=ColorRGBA(*OBSTACLE_COLOR))
