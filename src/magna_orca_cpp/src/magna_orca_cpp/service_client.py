@@ -1,0 +1,114 @@
+"""ORCA-3D through the orca3d_server services, with the numpy reference as the fallback.
+
+UAV managers call `OrcaSolver.new_velocity(...)`: the C++ service when it is up, the
+reference (same semantics, slower) when it is not. Needs rospy and magna_msgs.
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import rospy
+from geometry_msgs.msg import Point, Vector3
+from magna_msgs.msg import OrcaAgent, OrcaParams
+from magna_msgs.srv import (
+    OrcaComputeVelocities,
+    OrcaComputeVelocitiesRequest,
+    OrcaComputeVelocity,
+    OrcaComputeVelocityRequest,
+)
+
+from magna_orca_cpp import reference
+from magna_orca_cpp.model import Agent, Params, Solution
+from magna_orca_cpp.validation import OrcaInputError
+
+ONE_SERVICE = "/magna/orca3d/compute_velocity"
+BATCH_SERVICE = "/magna/orca3d/compute_velocities"
+
+
+def agent_to_msg(agent: Agent, agent_id: int) -> OrcaAgent:
+    return OrcaAgent(id=agent_id, position=Point(*map(float, agent.position)),
+                     velocity=Vector3(*map(float, agent.velocity)),
+                     preferred_velocity=Vector3(*map(float, agent.preferred_velocity)),
+                     radius=agent.radius, max_speed=agent.max_speed, non_cooperative=not agent.cooperative)
+
+
+def params_to_msg(params: Params) -> OrcaParams:
+    return OrcaParams(n_neighbors_aware=params.max_neighbors, time_step=params.time_step,
+                      neighbor_dist=params.neighbor_dist, time_horizon=params.time_horizon,
+                      agent_radius=params.agent_radius, max_speed=params.max_speed)
+
+
+def _vector(msg: Vector3) -> np.ndarray:
+    return np.array([msg.x, msg.y, msg.z])
+
+
+class OrcaServiceClient:
+    """The two services over persistent connections (reconnected when they drop)."""
+
+    def __init__(self, one_service: str = ONE_SERVICE, batch_service: str = BATCH_SERVICE):
+        self._names = {OrcaComputeVelocity: one_service, OrcaComputeVelocities: batch_service}
+        self._proxies: dict = {}
+
+    def wait(self, timeout: float) -> bool:
+        """Whether both services answer within `timeout` seconds."""
+        try:
+            for name in self._names.values():
+                rospy.wait_for_service(name, timeout)
+        except rospy.ROSException:
+            return False
+        return True
+
+    def _call(self, kind, request):
+        proxy = self._proxies.get(kind)
+        if proxy is None:
+            proxy = self._proxies[kind] = rospy.ServiceProxy(self._names[kind], kind, persistent=True)
+        try:
+            response = proxy(request)
+        except rospy.ServiceException:
+            self._proxies.pop(kind, None)
+            proxy.close()
+            raise
+        if not response.success:
+            raise OrcaInputError(response.message)
+        return response
+
+    def new_velocity(self, agent: Agent, others: Sequence[Agent], params: Params) -> Solution:
+        request = OrcaComputeVelocityRequest(
+            agent=agent_to_msg(agent, 0), neighbors=[agent_to_msg(o, j + 1) for j, o in enumerate(others)],
+            params=params_to_msg(params))
+        response = self._call(OrcaComputeVelocity, request)
+        return Solution(_vector(response.velocity), response.feasible)
+
+    def new_velocities(self, agents: Sequence[Agent], params: Params) -> list[Solution]:
+        request = OrcaComputeVelocitiesRequest(
+            agents=[agent_to_msg(a, j) for j, a in enumerate(agents)], params=params_to_msg(params))
+        response = self._call(OrcaComputeVelocities, request)
+        return [Solution(_vector(v), f) for v, f in zip(response.velocities, response.feasible, strict=True)]
+
+    def close(self) -> None:
+        for proxy in self._proxies.values():
+            proxy.close()
+        self._proxies.clear()
+
+
+class OrcaSolver:
+    """The service when it is up, the numpy reference otherwise (same answers, within 1e-4)."""
+
+    def __init__(self, client: OrcaServiceClient | None = None, wait: float = 0.0):
+        self.client = client or OrcaServiceClient()
+        self.using_service = self.client.wait(wait) if wait > 0 else self._probe()
+
+    def _probe(self) -> bool:
+        try:
+            return self.client.wait(0.05)
+        except rospy.ROSInitException:
+            return False
+
+    def new_velocity(self, agent: Agent, others: Sequence[Agent], params: Params) -> Solution:
+        if self.using_service:
+            try:
+                return self.client.new_velocity(agent, others, params)
+            except rospy.ServiceException:
+                self.using_service = False  # the server went away: keep flying on the reference
+        return reference.new_velocity(agent, others, params)

@@ -1,0 +1,70 @@
+"""UAV managers' entry point: the C++ service when it is up, the numpy reference when it is not."""
+import subprocess
+
+import numpy as np
+import pytest
+
+from magna_orca_cpp import native, reference
+from magna_orca_cpp.model import Params
+from magna_orca_cpp.scenarios import scenarios
+from magna_orca_cpp.validation import OrcaInputError
+from tests.support import wait_until
+
+pytestmark = pytest.mark.ros
+
+# Private names, so this test's server cannot meet another test's.
+ONE, BATCH = "/orca_client_test/one", "/orca_client_test/batch"
+
+
+@pytest.fixture
+def client(rospy_node):
+    from magna_orca_cpp.service_client import OrcaServiceClient
+
+    client = OrcaServiceClient(ONE, BATCH)
+    yield client
+    client.close()
+
+
+def start_server(master):
+    return master.spawn(["rosrun", "magna_orca_cpp", "orca3d_server", f"/magna/orca3d/compute_velocity:={ONE}",
+                         f"/magna/orca3d/compute_velocities:={BATCH}", "__name:=orca_client_test_server"],
+                        stdout=subprocess.DEVNULL)
+
+
+def end(process):
+    process.terminate()
+    process.wait(10)
+
+
+def test_solver_falls_back_to_the_reference_and_switches_when_the_server_goes(ros_master, client):
+    from magna_orca_cpp.service_client import OrcaSolver
+
+    cases = scenarios(seed=8, count=20, n_neighbors=(1, 12))
+    absent = OrcaSolver(client)
+    assert not absent.using_service
+    for s in cases:
+        np.testing.assert_allclose(absent.new_velocity(s.agent, s.neighbors, s.params).velocity,
+                                   reference.new_velocity(s.agent, s.neighbors, s.params).velocity, atol=1e-12)
+
+    server = start_server(ros_master)
+    try:
+        present = OrcaSolver(client, wait=30.0)
+        assert present.using_service
+        for s in cases:
+            answer = present.new_velocity(s.agent, s.neighbors, s.params)
+            expected = native.new_velocity(s.agent, s.neighbors, s.params)
+            assert answer.feasible == expected.feasible
+            np.testing.assert_allclose(answer.velocity, expected.velocity, atol=1e-9)
+        batch = client.new_velocities([s.agent for s in cases], Params())
+        for got, want in zip(batch, native.new_velocities([s.agent for s in cases], Params()), strict=True):
+            np.testing.assert_allclose(got.velocity, want.velocity, atol=1e-9)
+        with pytest.raises(OrcaInputError, match="params.time_horizon"):
+            client.new_velocity(cases[0].agent, cases[0].neighbors, Params(time_horizon=-1.0))
+    finally:
+        end(server)
+    wait_until(lambda: server.poll() is not None, "the server to end")
+
+    s = cases[0]
+    answer = present.new_velocity(s.agent, s.neighbors, s.params)
+    assert not present.using_service, "a vanished server switches the solver to the reference"
+    np.testing.assert_allclose(answer.velocity, reference.new_velocity(s.agent, s.neighbors, s.params).velocity)
