@@ -43,12 +43,11 @@ Solution newVelocity(const Agent& self, const std::vector<Agent>& others, const 
   const Agent me = withDefaults(self, params);
   if (!me.cooperative)
     return Solution{ me.preferred_velocity, true };
-  std::vector<Agent> resolved;
-  resolved.reserve(others.size());
+  work.resolved.clear();
   for (const Agent& other : others)
-    resolved.push_back(withDefaults(other, params));
-  selectNeighbors(me, resolved, params.max_neighbors, params.neighbor_dist, work.neighbors);
-  return solveAgainst(me, resolved, params, work);
+    work.resolved.push_back(withDefaults(other, params));
+  selectNeighbors(me, work.resolved, params.max_neighbors, params.neighbor_dist, work.neighbors);
+  return solveAgainst(me, work.resolved, params, work);
 }
 
 Solution newVelocity(const Agent& self, const std::vector<Agent>& others, const Params& params)

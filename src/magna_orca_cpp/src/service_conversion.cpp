@@ -18,13 +18,6 @@ namespace service
 {
 namespace
 {
-std::string show(double value)
-{
-  std::ostringstream text;
-  text << value;
-  return text.str();
-}
-
 // Every private parameter the node reads, for --help and for catching misspelt names.
 struct ParameterDoc
 {
@@ -50,15 +43,15 @@ std::string defaultOf(const std::string& name, const Settings& defaults)
   if (name == "N_neighbors_aware")
     return std::to_string(p.max_neighbors);
   if (name == "timeStep")
-    return show(p.time_step);
+    return formatNumber(p.time_step);
   if (name == "neighborDist")
-    return show(p.neighbor_dist);
+    return formatNumber(p.neighbor_dist);
   if (name == "timeHorizon")
-    return show(p.time_horizon);
+    return formatNumber(p.time_horizon);
   if (name == "agent_radius")
-    return show(p.agent_radius);
+    return formatNumber(p.agent_radius);
   if (name == "maxSpeed")
-    return show(p.max_speed);
+    return formatNumber(p.max_speed);
   if (name == "max_neighbors")
     return std::to_string(defaults.max_neighbors);
   return std::to_string(defaults.max_agents);
@@ -111,20 +104,6 @@ std::string readNumber(const ros::NodeHandle& nh, const std::string& name, doubl
     out = static_cast<const int&>(value);
   else
     return "~" + name + " is " + describe(value) + ": give a number";
-  return "";
-}
-
-std::string checkPositiveSetting(double value, const char* name, const char* unit)
-{
-  if (!std::isfinite(value) || value <= 0.0)
-    return std::string("~") + name + " is " + show(value) + ": give a positive number of " + unit;
-  return "";
-}
-
-std::string checkNotNegativeSetting(double value, const char* name, const char* what)
-{
-  if (!std::isfinite(value) || value < 0.0)
-    return std::string("~") + name + " is " + show(value) + ": give " + what;
   return "";
 }
 
@@ -203,32 +182,11 @@ CommandLine parseCommandLine(int argc, const char* const* argv)
 
 std::string checkSettings(const Settings& settings)
 {
-  const Params& p = settings.params;
-  std::string error;
   if (settings.max_neighbors < 1)
     return "~max_neighbors is 0: give a whole number >= 1";
   if (settings.max_agents < 1)
     return "~max_agents is 0: give a whole number >= 1";
-  if (p.max_neighbors > settings.max_neighbors)
-    return "~N_neighbors_aware is " + std::to_string(p.max_neighbors) + ": above ~max_neighbors (" +
-           std::to_string(settings.max_neighbors) + "); lower it or raise ~max_neighbors";
-  if (!(error = checkPositiveSetting(p.time_step, "timeStep", "seconds")).empty())
-    return error;
-  if (!(error = checkNotNegativeSetting(p.neighbor_dist, "neighborDist", "a finite distance >= 0 (m)")).empty())
-    return error;
-  if (!(error = checkPositiveSetting(p.time_horizon, "timeHorizon", "seconds")).empty())
-    return error;
-  if (!(error = checkNotNegativeSetting(p.agent_radius, "agent_radius",
-                                        "a finite radius >= 0 (m; 0 makes every request give its radii)"))
-           .empty())
-    return error;
-  if (!(error = checkNotNegativeSetting(p.max_speed, "maxSpeed",
-                                        "a finite speed >= 0 (m/s; 0 makes every request give its speed limits)"))
-           .empty())
-    return error;
-  // The library's own check, in case it knows more than the above.
-  error = magna_orca::checkParams(p, settings.max_neighbors, "server parameters");
-  return error;
+  return checkParams(settings.params, settings.max_neighbors, serverParamNames());
 }
 
 std::string readSettings(const ros::NodeHandle& private_nh, Settings& settings)

@@ -5,60 +5,82 @@
 
 namespace magna_orca
 {
-namespace
-{
-std::string show(double value)
+std::string formatNumber(double value)
 {
   std::ostringstream text;
   text << value;
   return text.str();
 }
 
+namespace
+{
 std::string checkVector(const Vector3& vector, const std::string& where)
 {
   static const char* const kAxes[] = { "x", "y", "z" };
   for (int axis = 0; axis < 3; ++axis)
     if (!std::isfinite(vector[axis]))
-      return where + "." + kAxes[axis] + " is " + show(vector[axis]) + ": give a finite number";
+      return where + "." + kAxes[axis] + " is " + formatNumber(vector[axis]) + ": give a finite number";
   return "";
 }
 
 // A positive, finite parameter.
-std::string checkPositive(double value, const std::string& where, const char* legacy_name, const char* unit)
+std::string checkPositive(double value, const std::string& name, const char* unit)
 {
   if (!std::isfinite(value) || value <= 0.0)
-    return where + " (" + legacy_name + ") is " + show(value) + ": give a positive number of " + unit;
+    return name + " is " + formatNumber(value) + ": give a positive number of " + unit;
   return "";
 }
 
-// A finite parameter >= 0.
-std::string checkNotNegative(double value, const std::string& where, const char* what)
+// A finite value >= 0.
+std::string checkNotNegative(double value, const std::string& name, const char* what)
 {
   if (!std::isfinite(value) || value < 0.0)
-    return where + " is " + show(value) + ": " + what;
+    return name + " is " + formatNumber(value) + ": " + what;
   return "";
 }
 }  // namespace
 
-std::string checkParams(const Params& params, std::size_t neighbor_limit, const std::string& where)
+ParamNames requestParamNames(const std::string& where)
+{
+  return ParamNames{ where + ".n_neighbors_aware (N_neighbors_aware)",
+                     where + ".time_step (timeStep)",
+                     where + ".neighbor_dist (neighborDist)",
+                     where + ".time_horizon (timeHorizon)",
+                     where + ".agent_radius",
+                     where + ".max_speed (maxSpeed)",
+                     "~max_neighbors" };
+}
+
+ParamNames serverParamNames()
+{
+  return ParamNames{ "~N_neighbors_aware", "~timeStep", "~neighborDist", "~timeHorizon", "~agent_radius", "~maxSpeed",
+                     "~max_neighbors" };
+}
+
+std::string checkParams(const Params& params, std::size_t neighbor_limit, const ParamNames& names)
 {
   if (params.max_neighbors > neighbor_limit)
-    return where + ".n_neighbors_aware (N_neighbors_aware) is " + std::to_string(params.max_neighbors) +
-           ": this solver takes at most " + std::to_string(neighbor_limit) + " neighbours per agent";
+    return names.max_neighbors + " is " + std::to_string(params.max_neighbors) + ": above the cap of " +
+           std::to_string(neighbor_limit) + " neighbours per agent (" + names.neighbor_cap + "); lower it or raise " +
+           names.neighbor_cap;
   std::string error;
-  if (!(error = checkPositive(params.time_step, where + ".time_step", "timeStep", "seconds")).empty())
-    return error;
-  if (!(error = checkPositive(params.time_horizon, where + ".time_horizon", "timeHorizon", "seconds")).empty())
-    return error;
-  if (!(error = checkNotNegative(params.neighbor_dist, where + ".neighbor_dist",
-                                 "neighborDist must be a finite distance >= 0 (m)"))
+  if (!(error = checkPositive(params.time_step, names.time_step, "seconds")).empty() ||
+      !(error = checkPositive(params.time_horizon, names.time_horizon, "seconds")).empty() ||
+      !(error = checkNotNegative(params.neighbor_dist, names.neighbor_dist, "give a finite distance >= 0 (m)"))
+           .empty() ||
+      !(error = checkNotNegative(params.agent_radius, names.agent_radius,
+                                 "give a finite radius >= 0 (m; 0 means every agent gives its own)"))
+           .empty() ||
+      !(error = checkNotNegative(params.max_speed, names.max_speed,
+                                 "give a finite speed >= 0 (m/s; 0 means every agent gives its own)"))
            .empty())
     return error;
-  if (!(error = checkNotNegative(params.agent_radius, where + ".agent_radius",
-                                 "agent_radius must be a finite radius >= 0 (m)"))
-           .empty())
-    return error;
-  return checkNotNegative(params.max_speed, where + ".max_speed", "maxSpeed must be a finite speed >= 0 (m/s)");
+  return "";
+}
+
+std::string checkParams(const Params& params, std::size_t neighbor_limit, const std::string& where)
+{
+  return checkParams(params, neighbor_limit, requestParamNames(where));
 }
 
 std::string checkAgent(const Agent& agent, const Params& params, const std::string& where)

@@ -221,7 +221,7 @@ class Orca3dServerTest(unittest.TestCase):
         case("agent.max_speed is nan", lambda r: setattr(r.agent, "max_speed", math.nan))
         case("params.time_step (timeStep) is nan", lambda r: setattr(r.params, "time_step", math.nan))
         case("params.time_horizon (timeHorizon) is 0", lambda r: setattr(r.params, "time_horizon", 0.0))
-        case("params.neighbor_dist is inf", lambda r: setattr(r.params, "neighbor_dist", math.inf))
+        case("params.neighbor_dist (neighborDist) is inf", lambda r: setattr(r.params, "neighbor_dist", math.inf))
         case("params.agent_radius is -0.5", lambda r: setattr(r.params, "agent_radius", -0.5))
         case("params.n_neighbors_aware (N_neighbors_aware) is 51",
              lambda r: setattr(r.params, "n_neighbors_aware", 51))
@@ -294,7 +294,7 @@ class Orca3dServerTest(unittest.TestCase):
         cases = [(["_timeHorizon:=-1"], "~timeHorizon is -1"),
                  (["_timeStep:=0"], "~timeStep is 0"),
                  (["_maxSpeed:=fast"], "~maxSpeed is the string 'fast'"),
-                 (["_N_neighbors_aware:=2000"], "~N_neighbors_aware is 2000: above ~max_neighbors (1000)"),
+                 (["_N_neighbors_aware:=2000"], "~N_neighbors_aware is 2000: above the cap of 1000 neighbours"),
                  (["_max_agents:=0"], "~max_agents is 0"),
                  (["_time_horizon:=4.0"], "~time_horizon is not a parameter of orca3d_server")]
         for k, (args, expected) in enumerate(cases):

@@ -51,6 +51,8 @@ NEIGHBOR = Agent([3, 0, 0], [-1, 0, 0], [-1, 0, 0], 0.5, 2.0)
     (GOOD, [Agent([1, 1, 1], radius=-1.0)], Params(), "neighbors[0].radius is -1"),
     (GOOD, [NEIGHBOR], Params(time_horizon=0.0), "params.time_horizon (timeHorizon) is 0"),
     (GOOD, [NEIGHBOR], Params(time_step=-0.1), "params.time_step (timeStep) is -0.1"),
+    (GOOD, [NEIGHBOR], Params(neighbor_dist=-1.0), "params.neighbor_dist (neighborDist) is -1: give a finite"),
+    (GOOD, [NEIGHBOR], Params(max_speed=math.nan), "params.max_speed (maxSpeed) is nan"),
     (Agent([0, 0, 0]), [NEIGHBOR], Params(agent_radius=0.0), "agent.radius is 0 and params.agent_radius is 0"),
 ])
 def test_bad_input_gets_the_same_named_error_from_both(agent, neighbors, params, expected):

@@ -45,7 +45,8 @@ TEST(Validation, ParamsNameTheirField)
   EXPECT_TRUE(mentions(checkParams(p, 1000), "params.max_speed"));
   p = Params();
   p.max_neighbors = 5000;
-  EXPECT_TRUE(mentions(checkParams(p, 1000), "at most 1000"));
+  EXPECT_TRUE(mentions(checkParams(p, 1000), "above the cap of 1000 neighbours per agent (~max_neighbors)"));
+  EXPECT_TRUE(mentions(checkParams(p, 1000, magna_orca::serverParamNames()), "~N_neighbors_aware is 5000"));
 }
 
 TEST(Validation, AgentsNameTheirField)

@@ -17,6 +17,7 @@ Agent withDefaults(const Agent& agent, const Params& params);
 // Reusable buffers, so repeated solves do not allocate.
 struct Workspace
 {
+  std::vector<Agent> resolved;  // the candidates with their defaults applied
   NearestList neighbors;
   std::vector<Plane> planes;
   std::vector<Plane> scratch;

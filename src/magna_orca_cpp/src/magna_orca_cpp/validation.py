@@ -18,29 +18,30 @@ def _show(value: float) -> str:
     return f"{value:g}"
 
 
-def _check_positive(value: float, where: str, legacy_name: str, unit: str) -> None:
+def _check_positive(value: float, name: str, unit: str) -> None:
     if not math.isfinite(value) or value <= 0.0:
-        raise OrcaInputError(f"{where} ({legacy_name}) is {_show(value)}: give a positive number of {unit}")
+        raise OrcaInputError(f"{name} is {_show(value)}: give a positive number of {unit}")
 
 
-def _check_not_negative(value: float, where: str, what: str) -> None:
+def _check_not_negative(value: float, name: str, what: str) -> None:
     if not math.isfinite(value) or value < 0.0:
-        raise OrcaInputError(f"{where} is {_show(value)}: {what}")
+        raise OrcaInputError(f"{name} is {_show(value)}: {what}")
 
 
 def check_params(params: Params, neighbor_limit: int | None = None, where: str = "params") -> None:
-    if neighbor_limit is not None and params.max_neighbors > neighbor_limit:
-        raise OrcaInputError(f"{where}.n_neighbors_aware (N_neighbors_aware) is {params.max_neighbors}: "
-                             f"this solver takes at most {neighbor_limit} neighbours per agent")
-    if params.max_neighbors < 0:
-        raise OrcaInputError(f"{where}.n_neighbors_aware (N_neighbors_aware) is {params.max_neighbors}: "
-                             "give a whole number >= 0")
-    _check_positive(params.time_step, f"{where}.time_step", "timeStep", "seconds")
-    _check_positive(params.time_horizon, f"{where}.time_horizon", "timeHorizon", "seconds")
-    _check_not_negative(params.neighbor_dist, f"{where}.neighbor_dist",
-                        "neighborDist must be a finite distance >= 0 (m)")
-    _check_not_negative(params.agent_radius, f"{where}.agent_radius", "agent_radius must be a finite radius >= 0 (m)")
-    _check_not_negative(params.max_speed, f"{where}.max_speed", "maxSpeed must be a finite speed >= 0 (m/s)")
+    """The C++ checkParams with a request's names ("params.time_horizon (timeHorizon)")."""
+    if params.max_neighbors < 0 or (neighbor_limit is not None and params.max_neighbors > neighbor_limit):
+        advice = (f"above the cap of {neighbor_limit} neighbours per agent (~max_neighbors); "
+                  "lower it or raise ~max_neighbors" if params.max_neighbors >= 0 else "give a whole number >= 0")
+        raise OrcaInputError(f"{where}.n_neighbors_aware (N_neighbors_aware) is {params.max_neighbors}: {advice}")
+    _check_positive(params.time_step, f"{where}.time_step (timeStep)", "seconds")
+    _check_positive(params.time_horizon, f"{where}.time_horizon (timeHorizon)", "seconds")
+    _check_not_negative(params.neighbor_dist, f"{where}.neighbor_dist (neighborDist)",
+                        "give a finite distance >= 0 (m)")
+    _check_not_negative(params.agent_radius, f"{where}.agent_radius",
+                        "give a finite radius >= 0 (m; 0 means every agent gives its own)")
+    _check_not_negative(params.max_speed, f"{where}.max_speed (maxSpeed)",
+                        "give a finite speed >= 0 (m/s; 0 means every agent gives its own)")
 
 
 def check_agent(agent: Agent, params: Params, where: str) -> None:
