@@ -1,0 +1,112 @@
+"""What one UAV manager knows of the world at a control step (UAV-D): the latest state
+of itself and every other UAV, and the obstacles, with nearest-first queries.
+
+Pure data: the ROS side (magna_uav.ros_data) fills it from the UAL topics, the battery
+topic, the depth camera and the world node's obstacle markers.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+UNKNOWN_BATTERY = math.nan
+
+
+@dataclass
+class AgentState:
+    """The latest known state of one UAV, in the map frame."""
+
+    id: int
+    position: np.ndarray = field(default_factory=lambda: np.zeros(3))  # m
+    orientation: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 0.0, 1.0]))  # quaternion x y z w
+    velocity: np.ndarray = field(default_factory=lambda: np.zeros(3))  # m/s
+    yaw_rate: float = 0.0  # rad/s
+    ual_state: int = 0  # uav_abstraction_layer/State constant
+    battery: float = UNKNOWN_BATTERY  # remaining charge, 0..1
+    stamp: float = 0.0  # s (sim time) of the pose
+    safety_radius: float = 0.3  # m, from the UAV's airframe
+    depth: np.ndarray | None = None  # latest depth image (metres), when the camera is on
+
+    def __post_init__(self) -> None:
+        self.position = np.asarray(self.position, dtype=float).reshape(3)
+        self.orientation = np.asarray(self.orientation, dtype=float).reshape(4)
+        self.velocity = np.asarray(self.velocity, dtype=float).reshape(3)
+
+    @property
+    def yaw(self) -> float:
+        x, y, z, w = self.orientation
+        return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+@dataclass(frozen=True)
+class Obstacle:
+    """A world obstacle as the managers avoid it: its bounding sphere."""
+
+    name: str
+    position: np.ndarray  # m, centre in map
+    radius: float  # m, bounding sphere
+
+
+class WorldView:
+    """Own state, the other UAVs' states and the obstacles, as last heard."""
+
+    def __init__(self, own_id: int, boundaries: np.ndarray | None = None):
+        self.own_id = int(own_id)
+        # [[xmin, xmax], [ymin, ymax], [zmin, zmax]] or None when the world has none
+        self.boundaries = None if boundaries is None else np.asarray(boundaries, dtype=float).reshape(3, 2)
+        self._agents: dict[int, AgentState] = {}
+        self.obstacles: tuple[Obstacle, ...] = ()
+
+    def update_agent(self, state: AgentState) -> None:
+        self._agents[state.id] = state
+
+    def agent(self, agent_id: int) -> AgentState | None:
+        return self._agents.get(agent_id)
+
+    @property
+    def has_own(self) -> bool:
+        return self.own_id in self._agents
+
+    @property
+    def own(self) -> AgentState:
+        try:
+            return self._agents[self.own_id]
+        except KeyError:
+            raise LookupError(f"UAV {self.own_id} has no pose yet (nothing heard on /uav_{self.own_id}/ual/pose)") \
+                from None
+
+    def others(self) -> list[AgentState]:
+        return [self._agents[i] for i in sorted(self._agents) if i != self.own_id]
+
+    def set_obstacles(self, obstacles: Iterable[Obstacle]) -> None:
+        self.obstacles = tuple(obstacles)
+
+    def nearest_agents(self, k: int | None = None, within: float = math.inf) -> list[tuple[AgentState, float]]:
+        """Other UAVs by the gap between their safety spheres and ours, nearest first (ties by id)."""
+        own = self.own
+        gaps = [(float(np.linalg.norm(o.position - own.position)) - o.safety_radius - own.safety_radius, o.id, o)
+                for o in self.others()]
+        return _nearest(gaps, k, within)
+
+    def nearest_obstacles(self, k: int | None = None, within: float = math.inf) -> list[tuple[Obstacle, float]]:
+        """Obstacles by the gap between their bounding spheres and our safety sphere, nearest first."""
+        own = self.own
+        gaps = [(float(np.linalg.norm(o.position - own.position)) - o.radius - own.safety_radius, n, o)
+                for n, o in enumerate(self.obstacles)]
+        return _nearest(gaps, k, within)
+
+    def inside_boundaries(self, position: Sequence[float] | None = None) -> bool:
+        if self.boundaries is None:
+            return True
+        p = self.own.position if position is None else np.asarray(position, dtype=float)
+        return bool(np.all(p >= self.boundaries[:, 0]) and np.all(p <= self.boundaries[:, 1]))
+
+
+def _nearest(gaps: list, k: int | None, within: float) -> list:
+    gaps = sorted((g for g in gaps if g[0] < within), key=lambda g: (g[0], g[1]))
+    if k is not None:
+        gaps = gaps[:k]
+    return [(item, gap) for gap, _, item in gaps]
