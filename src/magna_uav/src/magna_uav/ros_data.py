@@ -1,0 +1,306 @@
+"""The ROS side of a UAV manager's data (UAV-D): keeps a WorldView filled from topics.
+
+Per UAV id it listens to the UAL API and the autopilot's battery:
+
+    /uav_{id}/ual/pose                PoseStamped      position, orientation, stamp
+    /uav_{id}/ual/velocity            TwistStamped     linear velocity, yaw rate
+    /uav_{id}/ual/state               uav_abstraction_layer/State
+    /uav_{id}/mavros/battery          sensor_msgs/BatteryState   percentage, 0..1 (NaN: unknown)
+    /uav_{id}/camera/depth/image_raw  sensor_msgs/Image 32FC1 (metres) or 16UC1 (mm); own UAV, when asked
+
+and to the world node's latched /magna/world/markers, whose namespace "obstacles" becomes
+the view's obstacles (bounding spheres). A UAV enters the view at its first pose: what is
+heard of it before (velocity, state, battery) is kept and shows up with that pose, so the
+view never holds a UAV at a made-up position.
+
+Threads: rospy runs each subscription's callbacks in a thread of its own; every update
+takes `lock` and replaces whole AgentState objects, and the control loop holds the same
+lock while it reads the view (`with data.lock: evaluator.step(view)`).
+
+The message handling (`WorldUpdater`, `ObstacleMarkers`) needs no ROS master, only the
+message classes; `RosWorldData` adds the subscriptions.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import threading
+from collections.abc import Iterable
+
+import numpy as np
+from geometry_msgs.msg import PoseStamped, TwistStamped
+from sensor_msgs.msg import BatteryState, Image
+from uav_abstraction_layer.msg import State
+from visualization_msgs.msg import Marker, MarkerArray
+
+from magna_uav.world_view import AgentState, Obstacle, WorldView
+
+MARKERS_TOPIC = "/magna/world/markers"
+OBSTACLE_NS = "obstacles"
+MAP_FRAMES = ("map", "/map", "")  # markers without a frame are taken to be in map
+
+_MARKER_TYPES = {getattr(Marker, n): n for n in (
+    "ARROW", "CUBE", "SPHERE", "CYLINDER", "LINE_STRIP", "LINE_LIST", "CUBE_LIST", "SPHERE_LIST", "POINTS",
+    "TEXT_VIEW_FACING", "MESH_RESOURCE", "TRIANGLE_LIST")}
+
+
+def topics(agent_id: int) -> dict[str, str]:
+    """The topics heard for one UAV."""
+    base = f"/uav_{agent_id}"
+    return {"pose": f"{base}/ual/pose", "velocity": f"{base}/ual/velocity", "state": f"{base}/ual/state",
+            "battery": f"{base}/mavros/battery", "depth": f"{base}/camera/depth/image_raw"}
+
+
+# --- obstacle markers -------------------------------------------------------------------------------------------
+
+def obstacles_from_markers(markers: MarkerArray) -> list[Obstacle]:
+    """The obstacles one MarkerArray leaves behind when applied to an empty set (see ObstacleMarkers)."""
+    table = ObstacleMarkers()
+    table.apply(markers)
+    return table.obstacles()
+
+
+class ObstacleMarkers:
+    """The obstacle markers heard so far, keyed by (ns, id) as rviz keys them.
+
+    Only namespace "obstacles" counts. ADD (= MODIFY) puts or replaces a marker, DELETE
+    removes it, DELETEALL (ns "" or "obstacles") empties the set. Each marker becomes the
+    bounding sphere of what rviz would draw:
+
+    - CUBE: half the diagonal of the scale (full edge lengths); SPHERE: half the largest
+      scale; CYLINDER: half the diagonal of (diameter, height) -- each the smallest sphere
+      about the pose origin that holds the solid;
+    - TRIANGLE_LIST (points scaled by `scale`, as rviz does), LINE_LIST/LINE_STRIP (plus
+      half the line width scale.x), POINTS, SPHERE_LIST, CUBE_LIST (plus half an item):
+      the points are in the marker's frame; the centre is the pose origin or the centre of
+      the points' bounding box, whichever needs the smaller radius, moved by the pose;
+    - ARROW, TEXT_VIEW_FACING, MESH_RESOURCE have no size of their own here: skipped, and
+      `apply` says so.
+
+    The name is the marker's `text` when it has one, else "obstacle_{id}". Markers in a
+    frame other than map are skipped (there is no tf lookup here).
+    """
+
+    def __init__(self, namespace: str = OBSTACLE_NS):
+        self.namespace = namespace
+        self._by_key: dict[tuple[str, int], Obstacle] = {}
+
+    def apply(self, markers: MarkerArray | Iterable[Marker]) -> list[str]:
+        """Apply the markers in order; return what was skipped and why (empty when all were used)."""
+        problems = []
+        for marker in getattr(markers, "markers", markers):
+            if marker.action == Marker.DELETEALL:
+                if marker.ns in ("", self.namespace):
+                    self._by_key.clear()
+                continue
+            if marker.ns != self.namespace:
+                continue
+            key = (marker.ns, marker.id)
+            if marker.action == Marker.DELETE:
+                self._by_key.pop(key, None)
+                continue
+            if marker.action != Marker.ADD:
+                problems.append(f"marker {marker.ns}/{marker.id}: unknown action {marker.action}; skipped")
+                continue
+            try:
+                obstacle = marker_obstacle(marker)
+            except ValueError as err:
+                problems.append(f"marker {marker.ns}/{marker.id}: {err}; skipped")
+                self._by_key.pop(key, None)  # a replaced marker that we cannot use is gone all the same
+                continue
+            if obstacle is None:
+                self._by_key.pop(key, None)
+            else:
+                self._by_key[key] = obstacle
+        return problems
+
+    def obstacles(self) -> list[Obstacle]:
+        return [self._by_key[k] for k in sorted(self._by_key)]
+
+
+def marker_obstacle(marker: Marker) -> Obstacle | None:
+    """The bounding sphere of one marker in map (None for a point marker without points); ValueError if unusable."""
+    if marker.header.frame_id not in MAP_FRAMES:
+        raise ValueError(f"in frame {marker.header.frame_id!r}, not map (no tf lookup here)")
+    kind = _MARKER_TYPES.get(marker.type, f"type {marker.type}")
+    scale = np.array([marker.scale.x, marker.scale.y, marker.scale.z], dtype=float)
+    if not np.all(np.isfinite(scale)):
+        raise ValueError(f"{kind} with a non-finite scale {scale.tolist()}")
+    scale = np.abs(scale)
+    position = np.array([marker.pose.position.x, marker.pose.position.y, marker.pose.position.z], dtype=float)
+    q = marker.pose.orientation
+    rotation = _rotation(q.x, q.y, q.z, q.w)
+    name = marker.text.strip() or f"obstacle_{marker.id}"
+
+    if marker.type == Marker.CUBE:
+        return Obstacle(name, position, float(np.linalg.norm(scale)) / 2.0)
+    if marker.type == Marker.SPHERE:
+        return Obstacle(name, position, float(scale.max()) / 2.0)
+    if marker.type == Marker.CYLINDER:
+        return Obstacle(name, position, math.hypot(max(scale[0], scale[1]), scale[2]) / 2.0)
+
+    item = {  # half the size of what is drawn at each point
+        Marker.TRIANGLE_LIST: 0.0,
+        Marker.LINE_LIST: scale[0] / 2.0,
+        Marker.LINE_STRIP: scale[0] / 2.0,
+        Marker.POINTS: max(scale[0], scale[1]) / 2.0,
+        Marker.SPHERE_LIST: scale.max() / 2.0,
+        Marker.CUBE_LIST: float(np.linalg.norm(scale)) / 2.0,
+    }.get(marker.type)
+    if item is None:
+        raise ValueError(f"a {kind} marker has no size MAGNA can bound (use CUBE, SPHERE, CYLINDER or TRIANGLE_LIST)")
+    if not marker.points:
+        return None
+    points = np.array([[p.x, p.y, p.z] for p in marker.points], dtype=float)
+    if not np.all(np.isfinite(points)):
+        raise ValueError(f"{kind} with non-finite points")
+    if marker.type == Marker.TRIANGLE_LIST:
+        points = points * scale
+    mid = (points.min(axis=0) + points.max(axis=0)) / 2.0
+    radius, centre = min((float(np.linalg.norm(points - c, axis=1).max()), i) for i, c in enumerate((np.zeros(3), mid)))
+    local = mid if centre == 1 else np.zeros(3)
+    return Obstacle(name, position + rotation @ local, radius + float(item))
+
+
+def _rotation(x: float, y: float, z: float, w: float) -> np.ndarray:
+    q = np.array([x, y, z, w], dtype=float)
+    norm = float(np.linalg.norm(q))
+    if not math.isfinite(norm) or norm < 1e-9:  # rviz draws an all-zero quaternion as identity
+        return np.eye(3)
+    x, y, z, w = q / norm
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+    ])
+
+
+# --- depth images -----------------------------------------------------------------------------------------------
+
+def depth_image(msg: Image) -> np.ndarray:
+    """A depth image as a (height, width) float array in metres; NaN where there is no reading."""
+    encodings = {"32FC1": ("f4", 4), "16UC1": ("u2", 2)}  # 16UC1: millimetres, 0 = no reading
+    if msg.encoding not in encodings:
+        raise ValueError(f"depth image encoding {msg.encoding!r} is not supported; publish 32FC1 (m) or 16UC1 (mm)")
+    code, size = encodings[msg.encoding]
+    if msg.step < msg.width * size or len(msg.data) < msg.step * msg.height:
+        raise ValueError(f"depth image of {msg.width}x{msg.height} has step {msg.step} and {len(msg.data)} "
+                         f"bytes; expected step >= {msg.width * size} and {msg.step * msg.height} bytes")
+    dtype = np.dtype(code).newbyteorder(">" if msg.is_bigendian else "<")
+    rows = np.frombuffer(bytes(msg.data), dtype=np.uint8, count=msg.step * msg.height).reshape(msg.height, msg.step)
+    image = rows[:, :msg.width * size].copy().view(dtype).reshape(msg.height, msg.width).astype(float)
+    if msg.encoding == "16UC1":
+        image[image == 0] = np.nan
+        image /= 1000.0
+    return image
+
+
+# --- the updater ------------------------------------------------------------------------------------------------
+
+class WorldUpdater:
+    """Turns UAL, battery, depth and marker messages into WorldView updates, under `lock`."""
+
+    def __init__(self, view: WorldView, agent_ids: Iterable[int], safety_radii: dict[int, float]):
+        self.view = view
+        ids = sorted({int(i) for i in agent_ids} | {view.own_id})
+        missing = [i for i in ids if i not in safety_radii]
+        if missing:
+            raise ValueError(f"safety_radii: no safety radius for UAV {', '.join(map(str, missing))}; give one per "
+                             f"agent id (the airframe's safety_radius, e.g. UavConfig.safety_radius)")
+        self.agent_ids = ids
+        self.lock = threading.Lock()
+        self._records = {i: AgentState(id=i, safety_radius=float(safety_radii[i])) for i in ids}
+        self._posed: set[int] = set()
+        self.markers = ObstacleMarkers()
+        self.marker_problems: list[str] = []  # what the last marker message had that was skipped
+
+    def heard(self, agent_id: int) -> AgentState:
+        """The latest state heard of one UAV, whether or not its pose has come (it is in the view only then)."""
+        with self.lock:
+            return self._records[agent_id]
+
+    def on_pose(self, agent_id: int, msg: PoseStamped, now: float = 0.0) -> None:
+        p, q = msg.pose.position, msg.pose.orientation
+        stamp = msg.header.stamp.to_sec() or now
+        self._update(agent_id, position=(p.x, p.y, p.z), orientation=(q.x, q.y, q.z, q.w), stamp=stamp, pose=True)
+
+    def on_velocity(self, agent_id: int, msg: TwistStamped) -> None:
+        v = msg.twist.linear
+        self._update(agent_id, velocity=(v.x, v.y, v.z), yaw_rate=float(msg.twist.angular.z))
+
+    def on_state(self, agent_id: int, msg: State) -> None:
+        self._update(agent_id, ual_state=int(msg.state))
+
+    def on_battery(self, agent_id: int, msg: BatteryState) -> None:
+        self._update(agent_id, battery=float(msg.percentage))
+
+    def on_depth(self, agent_id: int, msg: Image) -> None:
+        image = depth_image(msg)  # decoded outside the lock
+        self._update(agent_id, depth=image)
+
+    def on_markers(self, msg: MarkerArray) -> list[str]:
+        with self.lock:
+            self.marker_problems = self.markers.apply(msg)
+            self.view.set_obstacles(self.markers.obstacles())
+            return self.marker_problems
+
+    def _update(self, agent_id: int, pose: bool = False, **values) -> None:
+        with self.lock:
+            state = dataclasses.replace(self._records[agent_id], **values)
+            self._records[agent_id] = state
+            if pose:
+                self._posed.add(agent_id)
+            if agent_id in self._posed:
+                self.view.update_agent(state)
+
+
+class RosWorldData(WorldUpdater):
+    """WorldUpdater wired to the topics; `close()` (or leaving a `with` block) unsubscribes."""
+
+    def __init__(self, view: WorldView, agent_ids: list[int], safety_radii: dict[int, float], depth: bool = False,
+                 markers_topic: str = MARKERS_TOPIC):
+        import rospy  # here, so that the rest of the module loads without a ROS environment being up
+
+        super().__init__(view, agent_ids, safety_radii)
+        self._rospy = rospy
+        self._subscribers = []
+
+        def sub(topic, msg_type, handler, *args):
+            self._subscribers.append(rospy.Subscriber(topic, msg_type, self._guard(handler, topic), callback_args=args,
+                                                      queue_size=1, tcp_nodelay=True))
+
+        for i in self.agent_ids:
+            t = topics(i)
+            sub(t["pose"], PoseStamped, self._pose, i)
+            sub(t["velocity"], TwistStamped, self.on_velocity, i)
+            sub(t["state"], State, self.on_state, i)
+            sub(t["battery"], BatteryState, self.on_battery, i)
+        if depth:
+            sub(topics(view.own_id)["depth"], Image, self.on_depth, view.own_id)
+        sub(markers_topic, MarkerArray, self._markers)
+
+    def _pose(self, agent_id: int, msg: PoseStamped) -> None:
+        self.on_pose(agent_id, msg, now=self._rospy.get_time())
+
+    def _markers(self, msg: MarkerArray) -> None:
+        for problem in self.on_markers(msg):
+            self._rospy.logwarn("world markers: %s", problem)
+
+    def _guard(self, handler, topic: str):
+        def callback(msg, args):
+            try:
+                handler(*args, msg)
+            except ValueError as err:  # a bad message must not kill the subscriber thread silently
+                self._rospy.logerr_throttle(5.0, f"{topic}: {err}")
+        return callback
+
+    def close(self) -> None:
+        for subscriber in self._subscribers:
+            subscriber.unregister()
+        self._subscribers = []
+
+    def __enter__(self) -> RosWorldData:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()

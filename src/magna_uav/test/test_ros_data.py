@@ -1,0 +1,232 @@
+"""World data from ROS messages: obstacle markers, depth images and agent updates without a master; one live test."""
+import math
+import struct
+
+import numpy as np
+import pytest
+from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, TwistStamped, Vector3
+from sensor_msgs.msg import BatteryState, Image
+from uav_abstraction_layer.msg import State
+from visualization_msgs.msg import Marker, MarkerArray
+
+from magna_uav.ros_data import ObstacleMarkers, WorldUpdater, depth_image, marker_obstacle, obstacles_from_markers
+from magna_uav.world_view import WorldView
+from tests.support import CORPUS, wait_until
+
+YAW_90 = Quaternion(0.0, 0.0, math.sqrt(0.5), math.sqrt(0.5))
+
+
+def marker(kind, marker_id=0, ns="obstacles", scale=(1, 1, 1), position=(0, 0, 0), orientation=None, points=(),
+           action=Marker.ADD, frame="map", text=""):
+    m = Marker(type=kind, id=marker_id, ns=ns, action=action, text=text, scale=Vector3(*scale),
+               pose=Pose(position=Point(*position), orientation=orientation or Quaternion(0, 0, 0, 1)))
+    m.header.frame_id = frame
+    m.points = [Point(*p) for p in points]
+    return m
+
+
+# --- markers ---------------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("kind, scale, radius", [
+    (Marker.CUBE, (2, 3, 6), 3.5),  # half the diagonal: sqrt(4 + 9 + 36) / 2
+    (Marker.SPHERE, (3, 3, 3), 1.5),
+    (Marker.CYLINDER, (6, 6, 8), 5.0),  # corner of the (radius 3, half-height 4) section
+])
+def test_primitive_markers_are_bounded_by_their_scale(kind, scale, radius):
+    (obstacle,) = obstacles_from_markers(MarkerArray([marker(kind, 7, scale=scale, position=(1, 2, 3))]))
+    assert obstacle.name == "obstacle_7"
+    assert obstacle.radius == pytest.approx(radius)
+    np.testing.assert_allclose(obstacle.position, [1, 2, 3])
+
+
+def test_a_triangle_list_is_bounded_by_its_points_moved_by_the_pose():
+    # a prism-like mesh whose points lie from x=4..6 in its own frame: the box centre (5, 0, 1) beats the origin
+    points = [(4, -1, 0), (6, -1, 0), (6, 1, 2), (4, 1, 2), (5, 0, 0), (5, 0, 2)]
+    o = marker_obstacle(marker(Marker.TRIANGLE_LIST, points=points, position=(10, 0, 0), orientation=YAW_90))
+    np.testing.assert_allclose(o.position, [10, 5, 1], atol=1e-12)  # (5, 0, 1) turned 90 degrees about z
+    assert o.radius == pytest.approx(math.sqrt(3))
+    # rviz scales a triangle list's points by `scale`
+    scaled = marker_obstacle(marker(Marker.TRIANGLE_LIST, points=points, scale=(2, 2, 2)))
+    assert scaled.radius == pytest.approx(2 * math.sqrt(3))
+
+
+def test_points_about_the_origin_keep_the_origin_as_centre():
+    # the box centre would be (0, 0, 0.45), needing a radius of 1.097; the origin needs only 1.0
+    points = [(-1, 0, 0), (1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 0.9)]
+    o = marker_obstacle(marker(Marker.LINE_LIST, points=points, scale=(0.2, 0, 0), position=(0, 0, 5)))
+    np.testing.assert_allclose(o.position, [0, 0, 5])
+    assert o.radius == pytest.approx(1.0 + 0.1)  # plus half the line width
+
+
+def test_only_the_obstacle_namespace_counts_and_actions_apply_in_order():
+    table = ObstacleMarkers()
+    problems = table.apply(MarkerArray([
+        marker(Marker.CUBE, 0, ns="geometries", scale=(9, 9, 9)),
+        marker(Marker.SPHERE, 0, scale=(1, 1, 1), text="rock"),
+        marker(Marker.SPHERE, 1, scale=(2, 2, 2)),
+        marker(Marker.SPHERE, 2, scale=(4, 4, 4)),
+        marker(Marker.SPHERE, 2, action=Marker.DELETE),
+        marker(Marker.SPHERE, 1, scale=(6, 6, 6)),  # ADD on an existing (ns, id) replaces it
+    ]))
+    assert problems == []
+    assert [(o.name, o.radius) for o in table.obstacles()] == [("rock", 0.5), ("obstacle_1", 3.0)]
+    table.apply(MarkerArray([marker(Marker.SPHERE, 0, action=Marker.DELETEALL, ns="geometries")]))
+    assert len(table.obstacles()) == 2  # another namespace's DELETEALL leaves ours alone
+    table.apply(MarkerArray([Marker(action=Marker.DELETEALL), marker(Marker.CUBE, 5, scale=(2, 2, 2))]))
+    assert [o.name for o in table.obstacles()] == ["obstacle_5"]
+
+
+def test_unusable_markers_are_skipped_and_said():
+    table = ObstacleMarkers()
+    table.apply(MarkerArray([marker(Marker.SPHERE, 3, scale=(1, 1, 1))]))
+    problems = table.apply(MarkerArray([
+        marker(Marker.MESH_RESOURCE, 3),  # replaces the sphere 3 with something we cannot bound
+        marker(Marker.CUBE, 4, frame="uav_1/base_link"),
+        marker(Marker.TRIANGLE_LIST, 5),  # no points: nothing to avoid
+    ]))
+    assert problems == [
+        "marker obstacles/3: a MESH_RESOURCE marker has no size MAGNA can bound "
+        "(use CUBE, SPHERE, CYLINDER or TRIANGLE_LIST); skipped",
+        "marker obstacles/4: in frame 'uav_1/base_link', not map (no tf lookup here); skipped",
+    ]
+    assert table.obstacles() == []
+
+
+def test_markers_of_the_world_node_become_obstacles():
+    from magna_worlds.markers import world_markers
+    from magna_worlds.registry import WorldRegistry
+
+    # Delivery has sphere and cube obstacles (matrix pose sets) and many geofence geometries
+    world = WorldRegistry(seed=1).add_file("main", CORPUS / "Worlds" / "Delivery" / "Delivery.json")
+    expected = world.obstacles()
+    assert {o.shape for o in expected} == {"sphere", "cube"}
+    obstacles = obstacles_from_markers(world_markers([world]))
+    assert len(obstacles) == len(expected)
+    for got, want in zip(obstacles, expected, strict=True):
+        np.testing.assert_allclose(got.position, want.position, atol=1e-9)
+        bound = want.dimensions[0] / 2 if want.shape == "sphere" else np.linalg.norm(want.dimensions) / 2
+        assert got.radius == pytest.approx(bound)
+
+
+# --- depth -----------------------------------------------------------------------------------------------------
+
+def test_depth_images_decode_to_metres_with_row_padding():
+    values = [1.5, 2.0, math.inf, 0.25, 3.0, 4.0]
+    rows = [struct.pack("<3f", *values[:3]) + b"\0" * 4, struct.pack("<3f", *values[3:]) + b"\0" * 4]
+    image = depth_image(Image(height=2, width=3, encoding="32FC1", step=16, data=b"".join(rows)))
+    np.testing.assert_array_equal(image, np.array(values).reshape(2, 3))
+    big = depth_image(Image(height=1, width=2, encoding="32FC1", is_bigendian=1, step=8, data=struct.pack(">2f", 1, 2)))
+    np.testing.assert_array_equal(big, [[1.0, 2.0]])
+    mm = depth_image(Image(height=1, width=2, encoding="16UC1", step=4, data=struct.pack("<2H", 1500, 0)))
+    np.testing.assert_array_equal(mm, [[1.5, np.nan]])
+
+
+def test_bad_depth_images_are_refused():
+    with pytest.raises(ValueError, match="encoding 'rgb8' is not supported; publish 32FC1"):
+        depth_image(Image(height=1, width=1, encoding="rgb8", step=3, data=b"abc"))
+    with pytest.raises(ValueError, match="expected step >= 12 and 12 bytes"):
+        depth_image(Image(height=1, width=3, encoding="32FC1", step=12, data=b"\0" * 8))
+
+
+# --- agent updates ---------------------------------------------------------------------------------------------
+
+def pose(x, y, z, stamp=0.0):
+    msg = PoseStamped(pose=Pose(position=Point(x, y, z), orientation=YAW_90))
+    msg.header.frame_id = "map"
+    msg.header.stamp.secs, msg.header.stamp.nsecs = int(stamp), int(round(stamp % 1 * 1e9))
+    return msg
+
+
+def twist(vx, vy, vz, yaw_rate):
+    msg = TwistStamped()
+    msg.twist.linear, msg.twist.angular.z = Vector3(vx, vy, vz), yaw_rate
+    return msg
+
+
+def test_an_agent_enters_the_view_at_its_first_pose_with_what_was_heard_before():
+    view = WorldView(1)
+    data = WorldUpdater(view, [2], {1: 0.3, 2: 0.5})
+    assert data.agent_ids == [1, 2]  # own id always
+    data.on_velocity(2, twist(1, 2, 3, 0.5))
+    data.on_state(2, State(state=State.FLYING_AUTO))
+    data.on_battery(2, BatteryState(percentage=0.4))
+    assert view.agent(2) is None  # no made-up position at the origin
+    assert data.heard(2).ual_state == State.FLYING_AUTO
+    data.on_pose(2, pose(4, 5, 6, stamp=12.5))
+    a = view.agent(2)
+    np.testing.assert_allclose(a.position, [4, 5, 6])
+    np.testing.assert_allclose(a.velocity, [1, 2, 3])
+    assert (a.yaw_rate, a.ual_state, a.battery, a.stamp, a.safety_radius) == (0.5, 4, pytest.approx(0.4), 12.5, 0.5)
+    assert a.yaw == pytest.approx(math.pi / 2)
+    before = view.agent(2)
+    data.on_battery(2, BatteryState(percentage=0.3))
+    assert view.agent(2) is not before and before.battery == pytest.approx(0.4)  # replaced, never changed in place
+    data.on_pose(1, pose(0, 0, 0), now=7.0)
+    assert view.own.stamp == 7.0  # a pose without a stamp takes the receive time
+    assert view.nearest_agents()[0][1] == pytest.approx(math.sqrt(16 + 25 + 36) - 0.8)
+
+
+def test_markers_fill_the_views_obstacles():
+    view = WorldView(1)
+    data = WorldUpdater(view, [], {1: 0.3})
+    problems = data.on_markers(MarkerArray([marker(Marker.CUBE, 0, scale=(2, 2, 2)), marker(Marker.ARROW, 1)]))
+    assert [o.name for o in view.obstacles] == ["obstacle_0"] and len(problems) == 1 and "ARROW" in problems[0]
+
+
+def test_every_agent_needs_a_safety_radius():
+    with pytest.raises(ValueError, match="safety_radii: no safety radius for UAV 1, 3"):
+        WorldUpdater(WorldView(1), [2, 3], {2: 0.3})
+
+
+# --- live ------------------------------------------------------------------------------------------------------
+
+@pytest.mark.ros
+def test_topics_fill_the_view(rospy_node):
+    rospy = rospy_node
+    from magna_uav.ros_data import MARKERS_TOPIC, RosWorldData, topics
+
+    own, other = 91, 92
+    view = WorldView(own)
+    pubs = []
+
+    def publisher(topic, msg_type):
+        pubs.append(rospy.Publisher(topic, msg_type, queue_size=1, latch=True))
+        return pubs[-1]
+
+    data = RosWorldData(view, [own, other], {own: 0.3, other: 0.4}, depth=True)
+    try:
+        publisher(topics(other)["velocity"], TwistStamped).publish(twist(0, 1, 0, 0.1))
+        publisher(topics(other)["state"], State).publish(State(state=State.FLYING_AUTO))
+        wait_until(lambda: data.heard(other).ual_state == State.FLYING_AUTO, "the state of uav_92")
+        assert view.agent(other) is None
+        publisher(topics(own)["pose"], PoseStamped).publish(pose(1, 0, 2, stamp=3.0))
+        publisher(topics(other)["pose"], PoseStamped).publish(pose(1, 3, 2, stamp=3.0))
+        publisher(topics(own)["battery"], BatteryState).publish(BatteryState(percentage=0.8))
+        publisher(topics(own)["depth"], Image).publish(
+            Image(height=1, width=2, encoding="32FC1", step=8, data=struct.pack("<2f", 2.5, 7.0)))
+        box = marker(Marker.CUBE, 41, scale=(2, 2, 2), position=(1, 0, 5), text="test91_box")
+        publisher(MARKERS_TOPIC, MarkerArray).publish(MarkerArray([Marker(action=Marker.DELETEALL), box]))
+
+        def filled():
+            with data.lock:
+                return (view.has_own and view.agent(other) is not None and view.own.depth is not None
+                        and view.own.battery == pytest.approx(0.8)
+                        and any(o.name == "test91_box" for o in view.obstacles))
+
+        wait_until(filled, "the view of uav_91 to fill from its topics")
+        with data.lock:
+            (near, gap), = view.nearest_agents()
+            assert near.id == other and gap == pytest.approx(3 - 0.7)
+            assert near.ual_state == State.FLYING_AUTO and near.velocity[1] == pytest.approx(1.0)
+            np.testing.assert_array_equal(view.own.depth, [[2.5, 7.0]])
+            (obstacle, obstacle_gap), = [(o, g) for o, g in view.nearest_obstacles() if o.name == "test91_box"]
+            assert obstacle_gap == pytest.approx(3 - math.sqrt(3) - 0.3)
+
+        data.close()
+        pubs[2].publish(pose(8, 0, 2, stamp=4.0))
+        rospy.sleep(0.3)
+        np.testing.assert_allclose(view.own.position, [1, 0, 2])  # nothing heard after close()
+    finally:
+        data.close()
+        for p in pubs:
+            p.unregister()
