@@ -1,0 +1,327 @@
+"""The recorder: one row per control step of one UAV, kept in memory and written at save_csv /
+end of mission to one CSV per UAV (and, with the depth camera, one compressed npz of frames).
+
+The column set is defined once, by `columns(other_ids, n_obstacles)`, and documented in the
+package README ("Recorder CSV columns"); mlr trains from these files, so change both together.
+Values: floats in shortest round-trip form ("nan" when unknown), flags 0/1, ids and UAL states
+as integers, text as is; `feasible` is empty when the algorithm did not say.
+"""
+from __future__ import annotations
+
+import csv
+import math
+import os
+import re
+from collections import Counter
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from magna_uav.files import write_atomically
+from magna_uav.world_view import WorldView
+
+DEFAULT_OBSTACLES = 5
+NAN = math.nan
+
+XYZ = ("x", "y", "z")
+_HEAD = (["time", "uav_id", "role", "algorithm"] + [f"goal.{a}" for a in XYZ] + [f"sel_vel.{a}" for a in XYZ]
+         + [f"pos.{a}" for a in XYZ] + [f"ori.{a}" for a in (*XYZ, "w")] + [f"vel.{a}" for a in XYZ] + ["yaw_rate"])
+_TAIL = ["collision", "collided_with", "out_of_bounds", "low_battery", "battery", "ual_state", "feasible", "outcome"]
+
+TEXT_COLUMNS = frozenset({"role", "algorithm", "collided_with", "outcome"})  # and every obs{k}.name
+INT_COLUMNS = frozenset({"uav_id", "collision", "out_of_bounds", "low_battery", "ual_state"})
+OPTIONAL_FLAG_COLUMNS = frozenset({"feasible"})  # 0/1, or empty (None) when unknown
+
+
+def columns(other_ids: Iterable[int], n_obstacles: int = DEFAULT_OBSTACLES) -> list[str]:
+    """Every column of a recorder CSV, in order, for these other UAV ids (sorted) and obstacle slots."""
+    others = _other_ids(other_ids)
+    n_obstacles = _n_obstacles(n_obstacles)
+    names = list(_HEAD)
+    for j in others:
+        names += [f"uav{j}.pos.{a}" for a in XYZ] + [f"uav{j}.vel.{a}" for a in XYZ]
+    names += ["nearest_uav_gap", "nearest_obstacle_gap"]
+    names += [f"uav{j}.gap" for j in others]
+    for k in range(n_obstacles):
+        names += [f"obs{k}.name"] + [f"obs{k}.pos.{a}" for a in XYZ] + [f"obs{k}.gap"]
+    return names + _TAIL
+
+
+def column_kind(name: str) -> str:
+    """'text', 'int', 'flag?' (0/1 or unknown) or 'float': how a column's cells are read back."""
+    if name in TEXT_COLUMNS or re.fullmatch(r"obs\d+\.name", name):
+        return "text"
+    if name in INT_COLUMNS:
+        return "int"
+    if name in OPTIONAL_FLAG_COLUMNS:
+        return "flag?"
+    return "float"
+
+
+def depth_path(csv_path: str | os.PathLike) -> Path:
+    """Where the depth frames of the CSV at `csv_path` go: `<stem>_depth.npz` next to it."""
+    csv_path = Path(csv_path)
+    return csv_path.with_name(f"{csv_path.stem}_depth.npz")
+
+
+class Recorder:
+    """Rows of one UAV's control steps; see `columns` for what a row holds."""
+
+    def __init__(self, uav_id: int, other_ids: Iterable[int], n_obstacles: int = DEFAULT_OBSTACLES,
+                 depth: bool = False):
+        self.uav_id = int(uav_id)
+        self.other_ids = _other_ids(other_ids)
+        if self.uav_id in self.other_ids:
+            raise ValueError(f"recorder of UAV {self.uav_id}: its own id is among the other UAVs {self.other_ids}")
+        self.n_obstacles = _n_obstacles(n_obstacles)
+        self.depth = bool(depth)
+        self.columns = columns(self.other_ids, self.n_obstacles)
+        self._rows: list[list] = []
+        self._frames: list[np.ndarray] = []
+        self._frame_rows: list[int] = []
+        self._last_depth = None  # the view's depth array last stored: a frame is kept once, on the row it arrived
+
+    @property
+    def rows(self) -> int:
+        return len(self._rows)
+
+    @property
+    def depth_frames(self) -> int:
+        return len(self._frames)
+
+    def row(self, index: int) -> dict:
+        """One recorded row as {column: value} (values as they will be written, before formatting)."""
+        return dict(zip(self.columns, self._rows[index], strict=True))
+
+    def record(self, time: float, role: str, algorithm: str, goal_position: Sequence[float] | None,
+               chosen_velocity: Sequence[float] | None, view: WorldView, evaluation=None,
+               feasible: bool | None = None, outcome: str = "") -> int:
+        """Append the row of this control step; returns its index.
+
+        Positions, velocities and which obstacles are nearest come from `view`; gaps, collisions,
+        out_of_bounds and low_battery come from `evaluation` (duck-typed: nearest_agent_gap,
+        nearest_obstacle_gap, agent_gaps {id: gap}, obstacle_gaps {name: gap}, collided_with,
+        out_of_bounds, low_battery) where it has them, else from the view's safety-sphere gaps.
+        A UAV not heard of yet, or the own UAV before its first pose, gives NaN. With depth on, the
+        own depth image is kept with this row when it is a new image (not the one already kept).
+        """
+        own = view.own if view.has_own else None
+        agent_gaps = _view_agent_gaps(view) if own is not None else {}
+        agent_gaps.update(_mapping(getattr(evaluation, "agent_gaps", None)))
+        obstacles = _ranked_obstacles(view, _mapping(getattr(evaluation, "obstacle_gaps", None)), own is not None)
+
+        row: list = [float(time), self.uav_id, str(role), str(algorithm)]
+        row += _vector(goal_position, 3) + _vector(chosen_velocity, 3)
+        if own is not None:
+            row += _vector(own.position, 3) + _vector(own.orientation, 4) + _vector(own.velocity, 3)
+            row.append(float(own.yaw_rate))
+        else:
+            row += [NAN] * 11
+        for j in self.other_ids:
+            other = view.agent(j)
+            row += [NAN] * 6 if other is None else _vector(other.position, 3) + _vector(other.velocity, 3)
+
+        nearest_uav = _gap(getattr(evaluation, "nearest_agent_gap", None),
+                           min((g for j, g in agent_gaps.items() if j != self.uav_id), default=NAN))
+        nearest_obstacle = _gap(getattr(evaluation, "nearest_obstacle_gap", None),
+                                min((g for _, g in obstacles), default=NAN))
+        row += [nearest_uav, nearest_obstacle]
+        row += [_gap(agent_gaps.get(j), NAN) for j in self.other_ids]
+        for k in range(self.n_obstacles):
+            if k < len(obstacles):
+                obstacle, gap = obstacles[k]
+                row += [obstacle.name] + _vector(obstacle.position, 3) + [gap]
+            else:
+                row += ["", NAN, NAN, NAN, NAN]
+
+        collided_with = [str(c) for c in (getattr(evaluation, "collided_with", None) or ())]
+        out_of_bounds = getattr(evaluation, "out_of_bounds", None)
+        if out_of_bounds is None:
+            out_of_bounds = own is not None and not view.inside_boundaries()
+        row += [int(bool(collided_with)), ";".join(collided_with), int(bool(out_of_bounds)),
+                int(bool(getattr(evaluation, "low_battery", False))),
+                NAN if own is None else float(own.battery), 0 if own is None else int(own.ual_state),
+                None if feasible is None else int(bool(feasible)), str(outcome)]
+        assert len(row) == len(self.columns)
+
+        frame = None
+        if self.depth and own is not None and own.depth is not None and own.depth is not self._last_depth:
+            frame = np.array(own.depth, dtype=np.float32, copy=True)
+            if frame.ndim != 2:
+                raise ValueError(f"recorder of UAV {self.uav_id}: depth frame must be 2-D, got shape {frame.shape}")
+            if self._frames and frame.shape != self._frames[0].shape:
+                raise ValueError(f"recorder of UAV {self.uav_id}: depth frame shape {frame.shape} differs from "
+                                 f"the first one {self._frames[0].shape}")
+        self._rows.append(row)
+        index = len(self._rows) - 1
+        if frame is not None:
+            self._last_depth = own.depth
+            self._frames.append(frame)
+            self._frame_rows.append(index)
+        return index
+
+    def set_outcome(self, outcome: str) -> None:
+        """Write the role's outcome into the last row (the role ends after its last step)."""
+        if not self._rows:
+            raise LookupError(f"recorder of UAV {self.uav_id}: no row to give the outcome {outcome!r}")
+        self._rows[-1][-1] = str(outcome)
+
+    def save_csv(self, path: str | os.PathLike, overwrite: bool = False) -> Path:
+        """Write every row to `path` (and the depth frames to `depth_path(path)` when depth is on).
+
+        All or nothing per file; an existing file is refused (FileExistsError, nothing written)
+        unless `overwrite`. The rows stay in memory; `clear()` drops them.
+        """
+        path = Path(path)
+        targets = [path] + ([depth_path(path)] if self.depth else [])
+        if not overwrite:
+            for target in targets:
+                if target.exists():
+                    raise FileExistsError(f"{target}: already exists (pass overwrite=True to replace it)")
+        created_depth = None
+        if self.depth:
+            created_depth = None if depth_path(path).exists() else depth_path(path)
+            write_atomically(depth_path(path), self._write_depth, overwrite=overwrite, binary=True)
+        try:
+            write_atomically(path, self._write_csv, overwrite=overwrite)
+        except BaseException:
+            if created_depth is not None:  # do not leave frames without their rows
+                created_depth.unlink(missing_ok=True)
+            raise
+        return path
+
+    def clear(self) -> None:
+        self._rows.clear()
+        self._frames.clear()
+        self._frame_rows.clear()
+        self._last_depth = None
+
+    def _write_csv(self, out) -> None:
+        writer = csv.writer(out, lineterminator="\n")
+        writer.writerow(self.columns)
+        for row in self._rows:
+            writer.writerow([_cell(v) for v in row])
+
+    def _write_depth(self, out) -> None:
+        if self._frames:
+            frames = np.stack(self._frames).astype(np.float32, copy=False)
+        else:
+            frames = np.zeros((0, 0, 0), dtype=np.float32)
+        np.savez_compressed(out, frames=frames, rows=np.asarray(self._frame_rows, dtype=np.int64))
+
+
+def read_csv(path: str | os.PathLike) -> tuple[list[str], list[dict]]:
+    """(columns, rows) of a recorder CSV, each row {column: value} with the types of `column_kind`.
+
+    ValueError naming the file when the header is not a recorder column set.
+    """
+    path = Path(path)
+    with open(path, newline="", encoding="utf-8") as source:
+        reader = csv.reader(source)
+        try:
+            header = next(reader)
+        except StopIteration:
+            raise ValueError(f"{path}: empty, no header") from None
+        others = [int(m.group(1)) for name in header if (m := re.fullmatch(r"uav(\d+)\.pos\.x", name))]
+        n_obstacles = sum(1 for name in header if re.fullmatch(r"obs\d+\.name", name))
+        expected = columns(others, n_obstacles)
+        if header != expected:
+            missing = [c for c in expected if c not in header]
+            extra = [c for c in header if c not in expected]
+            raise ValueError(f"{path}: not a recorder CSV header (missing {missing}, unexpected {extra}"
+                             f"{', or out of order' if not missing and not extra else ''})")
+        kinds = [column_kind(name) for name in header]
+        rows = []
+        for line, cells in enumerate(reader, start=2):
+            if len(cells) != len(header):
+                raise ValueError(f"{path}:{line}: {len(cells)} cells for {len(header)} columns")
+            try:
+                rows.append({name: _parse(cell, kind) for name, cell, kind in zip(header, cells, kinds, strict=True)})
+            except ValueError as error:
+                raise ValueError(f"{path}:{line}: {error}") from None
+    return header, rows
+
+
+def read_depth(csv_path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
+    """(frames [n, H, W] float32 in metres, row index [n]) saved next to the CSV at `csv_path`."""
+    with np.load(depth_path(csv_path)) as data:
+        return data["frames"], data["rows"]
+
+
+def _other_ids(other_ids: Iterable[int]) -> list[int]:
+    ids = [int(j) for j in other_ids]
+    if len(set(ids)) != len(ids):
+        raise ValueError(f"other UAV ids repeat: {ids}")
+    if any(j < 0 for j in ids):
+        raise ValueError(f"UAV ids must be >= 0: {ids}")
+    return sorted(ids)
+
+
+def _n_obstacles(n: int) -> int:
+    if isinstance(n, bool) or int(n) != n or n < 0:
+        raise ValueError(f"n_obstacles must be an integer >= 0, got {n!r}")
+    return int(n)
+
+
+def _vector(values, size: int) -> list[float]:
+    if values is None:
+        return [NAN] * size
+    array = np.asarray(values, dtype=float).reshape(-1)
+    if array.size != size:
+        raise ValueError(f"expected {size} values, got {array.size}")
+    return [float(v) for v in array]
+
+
+def _gap(value, default: float) -> float:
+    """A gap to write: `default` when not given; an infinite gap ("nothing there") is unknown, NaN."""
+    if value is None:
+        return default
+    value = float(value)
+    return value if math.isfinite(value) else NAN
+
+
+def _mapping(value) -> dict:
+    return dict(value) if value else {}
+
+
+def _view_agent_gaps(view: WorldView) -> dict[int, float]:
+    return {state.id: gap for state, gap in view.nearest_agents()}
+
+
+def _ranked_obstacles(view: WorldView, gaps: dict, has_own: bool) -> list:
+    """(Obstacle, gap) for every obstacle of the view, nearest first (ties by the view's order).
+
+    The evaluation's gap for a name is used when that name is unique in the view (a gap by name
+    cannot tell two obstacles of one name apart); otherwise the view's sphere gap.
+    """
+    sphere = {id(o): g for o, g in view.nearest_obstacles()} if has_own else {}
+    names = Counter(o.name for o in view.obstacles)
+    ranked = []
+    for n, obstacle in enumerate(view.obstacles):
+        given = gaps.get(obstacle.name) if names[obstacle.name] == 1 else None
+        gap = _gap(given, sphere.get(id(obstacle), NAN))
+        ranked.append((math.inf if math.isnan(gap) else gap, n, obstacle, gap))
+    ranked.sort(key=lambda item: item[:2])
+    return [(obstacle, gap) for _, _, obstacle, gap in ranked]
+
+
+def _cell(value) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, float):
+        return repr(value)
+    return str(value)
+
+
+def _parse(cell: str, kind: str):
+    if kind == "text":
+        return cell
+    if kind == "int":
+        return int(cell)
+    if kind == "flag?":
+        return None if cell == "" else int(cell)
+    return float(cell)
+
+
+__all__ = ["DEFAULT_OBSTACLES", "Recorder", "column_kind", "columns", "depth_path", "read_csv", "read_depth"]
