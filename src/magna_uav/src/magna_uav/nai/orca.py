@@ -1,0 +1,107 @@
+"""ORCA-3D in the NAI: own UAV, nearest UAVs and obstacles as magna_orca_cpp agents, one solve.
+
+- own UAV: position and velocity; preferred velocity = the simple-guidance velocity;
+  radius = the NAI's safety radius; max speed = the UAV's; cooperative.
+- the N nearest other UAVs: position and velocity; preferred velocity = their current
+  velocity; radius = their safety radius; cooperative (each takes half the avoidance);
+  max speed = the UAV's (a one-shot solve does not use it).
+- the M nearest obstacles: bounding-sphere centre and radius, velocity 0, not
+  cooperative (we take all the avoidance).
+
+N is `N_neighbors_aware` and M is `N_obstacles_aware` (a NAI parameter, default: N):
+UAVs and obstacles are counted apart, so an obstacle never hides a UAV. Both are the
+nearest by the gap between spheres below `neighborDist` (`inputs.select_neighbors`,
+the same selection that feeds the neural networks). The solver is given exactly these
+(its own neighbour cap is set to their number).
+
+The solver is any object with `new_velocity(agent, others, params) -> Solution`; the
+default is magna_orca_cpp's `OrcaSolver` (the /magna/orca3d/compute_velocity service when
+it is up, the numpy reference otherwise), or the reference alone when rospy or the
+messages cannot be imported. The first time a solve runs on the reference because the
+service is absent (the solver's `using_service` is False), one warning goes to the
+`magna_uav.nai` logger.
+"""
+from __future__ import annotations
+
+import dataclasses
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from magna_orca_cpp import reference
+from magna_orca_cpp.model import Agent, Params, Solution
+from magna_uav.nai.inputs import Neighbors, select_neighbors
+from magna_uav.world_view import WorldView
+
+logger = logging.getLogger("magna_uav.nai")
+
+SERVICE = "/magna/orca3d/compute_velocity"
+
+
+class ReferenceSolver:
+    """The numpy reference behind the solver interface (never uses the service)."""
+
+    using_service = False
+
+    def new_velocity(self, agent: Agent, others: Sequence[Agent], params: Params) -> Solution:
+        return reference.new_velocity(agent, others, params)
+
+
+def default_solver():
+    """magna_orca_cpp's OrcaSolver (service, else reference); the reference alone if ROS is not importable."""
+    try:
+        from magna_orca_cpp.service_client import OrcaSolver
+
+        return OrcaSolver()
+    except Exception as err:  # no rospy / magna_msgs, or the probe failed: fly on the reference
+        logger.debug("OrcaSolver unavailable (%s): ORCA-3D runs on the numpy reference", err)
+        return ReferenceSolver()
+
+
+def orca_agents(view: WorldView, preferred: np.ndarray, neighbors: Neighbors, radius: float,
+                max_speed: float) -> tuple[Agent, list[Agent]]:
+    """The own agent and its neighbours as in the module table."""
+    own = view.own
+    me = Agent(position=own.position, velocity=own.velocity, preferred_velocity=preferred, radius=radius,
+               max_speed=max_speed)
+    others = [Agent(position=a.position, velocity=a.velocity, preferred_velocity=a.velocity,
+                    radius=a.safety_radius, max_speed=max_speed) for a in neighbors.agents]
+    others += [Agent(position=o.position, radius=o.radius, max_speed=max_speed, cooperative=False)
+               for o in neighbors.obstacles]
+    return me, others
+
+
+@dataclass
+class OrcaResult:
+    velocity: np.ndarray
+    feasible: bool
+    neighbors: Neighbors
+
+
+class OrcaNavigator:
+    """One UAV's ORCA-3D step: select neighbours, build agents, call the solver."""
+
+    def __init__(self, solver=None):
+        self._solver = solver
+        self._warned = False
+
+    @property
+    def solver(self):
+        if self._solver is None:
+            self._solver = default_solver()
+        return self._solver
+
+    def velocity(self, view: WorldView, preferred: np.ndarray, params: Params, n_obstacles: int, radius: float,
+                 max_speed: float) -> OrcaResult:
+        neighbors = select_neighbors(view, params.max_neighbors, n_obstacles, params.neighbor_dist)
+        me, others = orca_agents(view, preferred, neighbors, radius, max_speed)
+        solver = self.solver
+        solution = solver.new_velocity(me, others, dataclasses.replace(params, max_neighbors=len(others)))
+        if not self._warned and getattr(solver, "using_service", True) is False:
+            self._warned = True
+            logger.warning("ORCA-3D service %s is not available: UAV %d avoids with the numpy reference "
+                           "(same answers, slower); start magna_orca_cpp orca3d_server for the fast path",
+                           SERVICE, view.own_id)
+        return OrcaResult(np.asarray(solution.velocity, dtype=float).reshape(3), bool(solution.feasible), neighbors)
