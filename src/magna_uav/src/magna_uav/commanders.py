@@ -1,0 +1,84 @@
+"""Commanders: the UAV manager's hands on the GRVC UAL API of one UAV.
+
+Thin on purpose: each method is one UAL call. Services are called non-blocking
+(`blocking: false`) so the control loop keeps evaluating and recording while a
+manoeuvre runs; roles watch the UAL state and the pose to know when it is done.
+The original's slips are not repeated: go_to_waypoint is a service, not a topic,
+and set_home uses the SetHome type.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import rospy
+from geometry_msgs.msg import PoseStamped, TwistStamped
+from uav_abstraction_layer.srv import GoToWaypoint, Land, SetHome, TakeOff
+
+FRAME = "map"
+
+
+class CommandRefused(RuntimeError):
+    """The UAL server refused a command; the message carries its reason."""
+
+
+def _quaternion_from_yaw(yaw: float) -> tuple[float, float, float, float]:
+    return 0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0)
+
+
+class UalCommander:
+    def __init__(self, uav_id: int, wait_for_services: float = 30.0):
+        self.uav_id = int(uav_id)
+        ns = f"/uav_{self.uav_id}/ual/"
+        self._set_velocity = rospy.Publisher(ns + "set_velocity", TwistStamped, queue_size=1)
+        self._set_pose = rospy.Publisher(ns + "set_pose", PoseStamped, queue_size=1)
+        services = {"take_off": TakeOff, "land": Land, "go_to_waypoint": GoToWaypoint, "set_home": SetHome}
+        self._services = {}
+        for name, kind in services.items():
+            full = ns + name
+            try:
+                rospy.wait_for_service(full, timeout=wait_for_services)
+            except rospy.ROSException:
+                raise CommandRefused(f"UAV {self.uav_id}: no UAL service {full} within {wait_for_services:g} s; "
+                                     "is magna_sim (or the UAV's UAL server) running?") from None
+            self._services[name] = rospy.ServiceProxy(full, kind)
+
+    def _call(self, name: str, **request):
+        try:
+            return self._services[name](**request)
+        except rospy.ServiceException as error:
+            raise CommandRefused(f"UAV {self.uav_id}: {name} refused: {error}") from None
+
+    def take_off(self, height: float) -> None:
+        self._call("take_off", height=float(height), blocking=False)
+
+    def land(self) -> None:
+        self._call("land", blocking=False)
+
+    def go_to_waypoint(self, position: Sequence[float], yaw: float = 0.0) -> None:
+        self._call("go_to_waypoint", waypoint=self.pose_msg(position, yaw), blocking=False)
+
+    def set_home(self, set_z: bool = True) -> None:
+        self._call("set_home", set_z=bool(set_z))
+
+    def set_velocity(self, velocity: Sequence[float], yaw_rate: float = 0.0) -> None:
+        msg = TwistStamped()
+        msg.header.stamp = rospy.Time.now()
+        msg.header.frame_id = FRAME
+        msg.twist.linear.x, msg.twist.linear.y, msg.twist.linear.z = (float(v) for v in velocity)
+        msg.twist.angular.z = float(yaw_rate)
+        self._set_velocity.publish(msg)
+
+    def hold_pose(self, position: Sequence[float], yaw: float) -> None:
+        """Hover: stream the pose to hold (a zero velocity would drift with the simulator's lag)."""
+        self._set_pose.publish(self.pose_msg(position, yaw))
+
+    @staticmethod
+    def pose_msg(position: Sequence[float], yaw: float = 0.0) -> PoseStamped:
+        msg = PoseStamped()
+        msg.header.stamp = rospy.Time.now()
+        msg.header.frame_id = FRAME
+        msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = (float(p) for p in position)
+        q = _quaternion_from_yaw(yaw)
+        msg.pose.orientation.x, msg.pose.orientation.y, msg.pose.orientation.z, msg.pose.orientation.w = q
+        return msg

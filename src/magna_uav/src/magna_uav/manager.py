@@ -1,0 +1,125 @@
+"""The UAV manager's control loop: one role at a time, evaluated, flown and recorded each step.
+
+Pure orchestration over injected parts, so it runs the same against magna_sim through
+ROS (the node) and against a kinematic stand-in in unit tests:
+  view        WorldView kept current by the data side (ros_data.RosWorldData)
+  commander   the UAL calls (commanders.UalCommander): take_off, land, go_to_waypoint,
+              set_velocity, hold_pose
+  nai         NavigationInterface: the velocity towards a goal (simple, ORCA-3D, network)
+  evaluator   collisions, boundaries, battery, ground-station events
+  recorder    one row per control step
+  clock       now() in sim seconds, and sleep() for one control period
+  lock        held while a step reads the view (the data side writes it from callbacks)
+"""
+from __future__ import annotations
+
+import contextlib
+import logging
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from magna_uav.roles import FLY, HOVER, LAND, TAKE_OFF, WAIT, WAYPOINT, Role, RoleStep
+
+PREEMPTED = "preempted"
+ABORTED = "aborted"
+
+log = logging.getLogger("magna_uav.manager")
+
+
+@dataclass
+class Clock:
+    now: Callable[[], float]
+    sleep: Callable[[], None]  # until the next control step
+
+
+@dataclass
+class RoleResult:
+    outcome: str
+    message: str
+    steps: int = 0
+    events: list[str] = field(default_factory=list)  # critical events seen (collision, low_battery, ...)
+
+
+class UavManager:
+    def __init__(self, view, commander, nai, evaluator, recorder, clock: Clock, lock=None):
+        self.view, self.commander, self.nai = view, commander, nai
+        self.evaluator, self.recorder, self.clock = evaluator, recorder, clock
+        self.lock = lock if lock is not None else contextlib.nullcontext()
+        self.gs_critical_event = False  # set by the ground station (critical event) between steps
+        self.role_name = "idle"
+        self._hold: tuple[np.ndarray, float] | None = None  # pose held while hovering
+        self._sent_waypoint: np.ndarray | None = None
+
+    def run_role(self, role: Role, preempt_requested: Callable[[], bool] = lambda: False,
+                 feedback: Callable[[RoleStep], None] = lambda step: None) -> RoleResult:
+        """Fly `role` until it ends, the evaluator stops it, or the ground station preempts it."""
+        self.role_name, self._hold, self._sent_waypoint = role.name, None, None
+        steps = 0
+        try:
+            while True:
+                if preempt_requested():
+                    self._hover()
+                    return RoleResult(PREEMPTED, f"{role.name} preempted by the ground station", steps)
+                now = self.clock.now()
+                with self.lock:
+                    evaluation = self.evaluator.step(self.view, self.gs_critical_event)
+                    if evaluation.outcome is not None:
+                        self._hover()
+                        self._record(now, None, np.zeros(3), "ual", evaluation, None, evaluation.outcome)
+                        return RoleResult(evaluation.outcome, evaluation.reason, steps + 1, [evaluation.outcome])
+                    step = role.step(self.view, now)
+                    chosen, algorithm, feasible = self._execute(step)
+                    self._record(now, step.goal, chosen, algorithm, evaluation, feasible, step.outcome or "")
+                steps += 1
+                feedback(step)
+                if step.outcome is not None:
+                    return RoleResult(step.outcome, step.message, steps)
+                self.clock.sleep()
+        finally:
+            self.role_name = "idle"
+
+    def hover(self) -> None:
+        """Hold the current pose (between roles, and after one ends)."""
+        self._hold = None
+        self._hover()
+
+    def _execute(self, step: RoleStep) -> tuple[np.ndarray, str, bool | None]:
+        """Carry out one step: the velocity commanded (zeros when the UAL autopilot flies), who chose
+        it (a navigation algorithm, or "ual"), and ORCA's feasibility."""
+        if step.action == FLY:
+            command = self.nai.velocity(self.view, step.goal)
+            self._hold = None
+            self.commander.set_velocity(command.velocity, command.yaw_rate)
+            return np.asarray(command.velocity, dtype=float), command.algorithm, command.feasible
+        if step.action == WAYPOINT:
+            target = np.asarray(step.goal.position, dtype=float)
+            if self._sent_waypoint is None or not np.allclose(target, self._sent_waypoint):
+                self.commander.go_to_waypoint(target, step.goal.yaw if step.goal.yaw is not None else self.view.own.yaw)
+                self._sent_waypoint = target
+        elif step.action == TAKE_OFF:
+            self.commander.take_off(step.height)
+        elif step.action == LAND:
+            self.commander.land()
+        elif step.action == HOVER:
+            self._hover()
+        elif step.action != WAIT:
+            raise ValueError(f"role step action {step.action!r} is unknown")
+        return np.zeros(3), "ual", None
+
+    def _hover(self) -> None:
+        if not self.view.has_own:
+            return
+        if self._hold is None:
+            own = self.view.own
+            self._hold = (own.position.copy(), own.yaw)
+        self._sent_waypoint = None
+        self.commander.hold_pose(*self._hold)
+
+    def _record(self, now, goal, chosen, algorithm, evaluation, feasible, outcome) -> None:
+        if self.recorder is None or not self.view.has_own:
+            return
+        goal_position = goal.position if goal is not None else np.full(3, np.nan)
+        self.recorder.record(now, self.role_name, algorithm, goal_position, chosen, self.view,
+                             evaluation=evaluation, feasible=feasible, outcome=outcome)

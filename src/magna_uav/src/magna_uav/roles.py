@@ -1,0 +1,269 @@
+"""Roles: what a UAV does between a goal from the ground station and its outcome.
+
+A role is pure logic. Each control step the manager hands it the WorldView and the
+time; the role answers with a `RoleStep`: what to do now (fly to a goal through the
+navigation algorithm, send a UAL waypoint, ask for a take-off or landing, wait while
+the UAL manoeuvre runs, hover), how far along it is, and, when it ends, its outcome.
+Collisions, low battery and ground-station events are the evaluator's business: the
+manager ends the role with those outcomes.
+"""
+from __future__ import annotations
+
+import math
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+
+import numpy as np
+
+from magna_uav.nai.goal import Goal
+from magna_uav.paths import WaypointTracker, smooth_path
+from magna_uav.world_view import WorldView
+
+# uav_abstraction_layer/State constants (kept here so the roles need no ROS)
+LANDED_DISARMED, LANDED_ARMED, TAKING_OFF, FLYING_AUTO, FLYING_MANUAL, LANDING = 1, 2, 3, 4, 5, 6
+
+SUCCEEDED, ABORTED = "succeeded", "aborted"
+
+# What the manager does with a step
+FLY, WAYPOINT, TAKE_OFF, LAND, WAIT, HOVER = "fly", "waypoint", "take_off", "land", "wait", "hover"
+
+DIRECTIONS = ("up", "down", "left", "right", "forward", "backward")
+
+
+@dataclass
+class RoleStep:
+    action: str  # FLY (NAI velocity to goal), WAYPOINT (UAL go_to_waypoint), TAKE_OFF, LAND, WAIT, HOVER
+    goal: Goal | None = None
+    percent: float = 0.0  # 0..100, for the action feedback
+    outcome: str | None = None  # set on the last step: succeeded or aborted
+    message: str = ""
+    height: float = 0.0  # for TAKE_OFF
+
+
+class Role(ABC):
+    name = "role"
+
+    def __init__(self, duration: float = 0.0):
+        self.duration = float(duration)  # s; 0 = no limit (or: until preempted, for following roles)
+        self.started: float | None = None
+
+    def step(self, view: WorldView, now: float) -> RoleStep:
+        if self.started is None:
+            self.started = now
+        return self._step(view, now, now - self.started)
+
+    def timed_out(self, elapsed: float) -> bool:
+        return self.duration > 0 and elapsed >= self.duration
+
+    @abstractmethod
+    def _step(self, view: WorldView, now: float, elapsed: float) -> RoleStep: ...
+
+
+class TakeOffRole(Role):
+    """Ask UAL for a take-off to `height` above the UAV, then wait for FLYING_AUTO at that height."""
+
+    name = "take_off"
+
+    def __init__(self, height: float, tolerance: float = 0.3, duration: float = 0.0):
+        super().__init__(duration)
+        if not math.isfinite(height) or height <= 0:
+            raise ValueError(f"take_off height is {height}: give a positive height in metres")
+        self.height, self.tolerance = float(height), tolerance
+        self.target_z: float | None = None
+
+    def _step(self, view, now, elapsed):
+        own = view.own
+        if self.target_z is None:
+            if own.ual_state == FLYING_AUTO:
+                return RoleStep(HOVER, percent=100.0, outcome=SUCCEEDED, message="already flying")
+            self.target_z = float(own.position[2]) + self.height
+            return RoleStep(TAKE_OFF, height=self.height, goal=Goal(position=own.position + [0, 0, self.height]))
+        climbed = 100.0 * min(1.0, max(0.0, 1.0 - (self.target_z - own.position[2]) / self.height))
+        if own.ual_state == FLYING_AUTO and abs(own.position[2] - self.target_z) <= self.tolerance:
+            return RoleStep(HOVER, percent=100.0, outcome=SUCCEEDED, message=f"flying at {own.position[2]:.2f} m")
+        if self.timed_out(elapsed):
+            return RoleStep(HOVER, percent=climbed, outcome=ABORTED, message=f"not up within {self.duration:g} s")
+        return RoleStep(WAIT, percent=climbed)
+
+
+class LandRole(Role):
+    name = "land"
+
+    def __init__(self, duration: float = 0.0):
+        super().__init__(duration)
+        self.asked = False
+
+    def _step(self, view, now, elapsed):
+        own = view.own
+        if own.ual_state in (LANDED_ARMED, LANDED_DISARMED):
+            return RoleStep(WAIT, percent=100.0, outcome=SUCCEEDED, message="landed")
+        if not self.asked:
+            self.asked = True
+            return RoleStep(LAND)
+        if self.timed_out(elapsed):
+            return RoleStep(HOVER, outcome=ABORTED, message=f"not landed within {self.duration:g} s")
+        return RoleStep(WAIT, percent=50.0 if own.ual_state == LANDING else 0.0)
+
+
+class FollowPathRole(Role):
+    """Waypoint by waypoint, each reached within the accepted radius on the UAV's own position.
+
+    With smooth_path_mode n > 0 the UAV flies a spline of order n through the waypoints
+    (velocity dynamic) and the waypoints are still checked one by one.
+    """
+
+    name = "path"
+
+    def __init__(self, waypoints, accepted_radius: float, smooth_path_mode: int = 0, dynamic: str = "velocity",
+                 duration: float = 0.0, lookahead: float = 1.0):
+        super().__init__(duration)
+        self.waypoints = np.asarray(waypoints, dtype=float).reshape(-1, 3)
+        if len(self.waypoints) == 0:
+            raise ValueError("follow_path: the path has no waypoints")
+        if dynamic not in ("velocity", "position"):
+            raise ValueError(f"follow_path dynamic is {dynamic!r}: give 'position' or 'velocity'")
+        self.dynamic = dynamic
+        self.tracker = WaypointTracker(self.waypoints, accepted_radius)
+        self.smoothed = smooth_path(self.waypoints, smooth_path_mode) if smooth_path_mode else self.waypoints
+        self.smooth = bool(smooth_path_mode) and len(self.smoothed) > len(self.waypoints)
+        self.lookahead = lookahead  # m along the smoothed path ahead of the UAV
+        self.sent_waypoint: int | None = None
+
+    def _step(self, view, now, elapsed):
+        own = view.own
+        self.tracker.update(own.position)
+        percent = 100.0 * self.tracker.index / len(self.waypoints)
+        if self.tracker.done:
+            return RoleStep(HOVER, percent=100.0, outcome=SUCCEEDED,
+                            message=f"{len(self.waypoints)} waypoints reached")
+        if self.timed_out(elapsed):
+            reached = f"{self.tracker.index} of {len(self.waypoints)} waypoints"
+            return RoleStep(HOVER, percent=percent, outcome=ABORTED, message=f"{reached} within {self.duration:g} s")
+        target = self.waypoints[self.tracker.index]
+        if self.dynamic == "position":
+            return RoleStep(WAYPOINT, goal=Goal(position=target), percent=percent)
+        carrot = self._carrot(own.position, target) if self.smooth else target
+        return RoleStep(FLY, goal=Goal(position=carrot), percent=percent)
+
+    def _carrot(self, position, target):
+        """A point `lookahead` metres along the smoothed path past the point nearest the UAV,
+        never past the current waypoint's nearest sample (so no waypoint is skipped)."""
+        distances = np.linalg.norm(self.smoothed - position, axis=1)
+        limit = int(np.argmin(np.linalg.norm(self.smoothed - target, axis=1)))
+        start = int(np.argmin(distances[:limit + 1]))
+        steps = np.linalg.norm(np.diff(self.smoothed[start:limit + 1], axis=0), axis=1)
+        ahead = int(np.searchsorted(np.cumsum(steps), self.lookahead))
+        return self.smoothed[min(start + ahead, limit)]
+
+
+class FollowAgentAtDistanceRole(Role):
+    """Keep `distance` metres from UAV `target_id`, on the line from it to us."""
+
+    name = "agent_ad"
+
+    def __init__(self, target_id: int, distance: float, duration: float = 0.0, lost_after: float = 2.0):
+        super().__init__(duration)
+        self.target_id, self.distance, self.lost_after = int(target_id), float(distance), lost_after
+
+    def _step(self, view, now, elapsed):
+        if self.target_id == view.own_id:
+            return RoleStep(HOVER, outcome=ABORTED, message=f"UAV {self.target_id} cannot follow itself")
+        target = view.agent(self.target_id)
+        if target is None:
+            if elapsed > self.lost_after:
+                return RoleStep(HOVER, outcome=ABORTED, message=f"nothing heard from UAV {self.target_id}")
+            return RoleStep(HOVER)
+        if self.timed_out(elapsed):
+            return RoleStep(HOVER, percent=100.0, outcome=SUCCEEDED, message=f"followed for {self.duration:g} s")
+        away = view.own.position - target.position
+        norm = float(np.linalg.norm(away))
+        direction = away / norm if norm > 1e-6 else np.array([1.0, 0.0, 0.0])
+        goal = Goal(position=target.position + direction * self.distance, velocity=target.velocity.copy(),
+                    distance=self.distance, role="agent_ad")
+        return RoleStep(FLY, goal=goal, percent=self._percent(elapsed))
+
+    def _percent(self, elapsed):
+        return 100.0 * min(1.0, elapsed / self.duration) if self.duration > 0 else 0.0
+
+
+class FollowAgentAtPositionRole(FollowAgentAtDistanceRole):
+    """Hold `offset` (map frame) from UAV `target_id`, aiming where it will be one `prediction` ahead."""
+
+    name = "agent_ap"
+
+    def __init__(self, target_id: int, offset, duration: float = 0.0, prediction: float = 0.5, lost_after: float = 2.0):
+        super().__init__(target_id, 0.0, duration, lost_after)
+        self.offset = np.asarray(offset, dtype=float).reshape(3)
+        self.prediction = prediction  # s: naive constant-velocity prediction of the target
+
+    def _step(self, view, now, elapsed):
+        step = super()._step(view, now, elapsed)
+        if step.action != FLY:
+            return step
+        target = view.agent(self.target_id)
+        predicted = target.position + target.velocity * self.prediction
+        step.goal = Goal(position=predicted + self.offset, velocity=target.velocity.copy(), offset=self.offset.copy(),
+                         role="agent_ap")
+        return step
+
+
+class BasicMoveRole(Role):
+    """Translation by `value` metres or rotation by `value` degrees, in a direction, by position or velocity.
+
+    Directions: up/down along the map's z; forward/backward/left/right in the UAV's
+    heading at the start. A rotation turns left (counter-clockwise) or right.
+    """
+
+    name = "basic_move"
+
+    def __init__(self, move_type: str, direction: str, value: float, dynamic: str = "position", duration: float = 0.0,
+                 accepted_radius: float = 0.3, accepted_angle: float = math.radians(5.0)):
+        super().__init__(duration)
+        if move_type not in ("translation", "rotation"):
+            raise ValueError(f"basic_move move_type is {move_type!r}: give 'translation' or 'rotation' "
+                             "(take-off and landing are their own roles)")
+        if direction not in DIRECTIONS:
+            raise ValueError(f"basic_move direction is {direction!r}: give one of {', '.join(DIRECTIONS)}")
+        if move_type == "rotation" and direction not in ("left", "right"):
+            raise ValueError(f"basic_move rotation direction is {direction!r}: give 'left' or 'right'")
+        if dynamic not in ("position", "velocity"):
+            raise ValueError(f"basic_move dynamic is {dynamic!r}: give 'position' or 'velocity'")
+        self.move_type, self.direction, self.value, self.dynamic = move_type, direction, float(value), dynamic
+        self.accepted_radius, self.accepted_angle = accepted_radius, accepted_angle
+        self.goal: Goal | None = None
+        self.start_position: np.ndarray | None = None
+
+    def _plan(self, own) -> Goal:
+        yaw = own.yaw
+        if self.move_type == "rotation":
+            turn = math.radians(self.value) * (1.0 if self.direction == "left" else -1.0)
+            return Goal(position=own.position.copy(), yaw=_wrap(yaw + turn), role="basic_move")
+        heading = np.array([math.cos(yaw), math.sin(yaw), 0.0])
+        left = np.array([-math.sin(yaw), math.cos(yaw), 0.0])
+        unit = {"up": np.array([0.0, 0.0, 1.0]), "down": np.array([0.0, 0.0, -1.0]), "forward": heading,
+                "backward": -heading, "left": left, "right": -left}[self.direction]
+        return Goal(position=own.position + unit * self.value, yaw=yaw, role="basic_move")
+
+    def _step(self, view, now, elapsed):
+        own = view.own
+        if self.goal is None:
+            self.goal, self.start_position = self._plan(own), own.position.copy()
+        if self.move_type == "rotation":
+            left = abs(_wrap(self.goal.yaw - own.yaw))
+            total = max(abs(math.radians(self.value)), 1e-9)
+            percent, arrived = 100.0 * (1.0 - min(1.0, left / total)), left <= self.accepted_angle
+        else:
+            left = float(np.linalg.norm(self.goal.position - own.position))
+            total = max(float(np.linalg.norm(self.goal.position - self.start_position)), 1e-9)
+            percent, arrived = 100.0 * (1.0 - min(1.0, left / total)), left <= self.accepted_radius
+        if arrived:
+            return RoleStep(HOVER, goal=self.goal, percent=100.0, outcome=SUCCEEDED,
+                            message=f"{self.move_type} {self.direction} {self.value:g} done")
+        if self.timed_out(elapsed):
+            return RoleStep(HOVER, goal=self.goal, percent=percent, outcome=ABORTED,
+                            message=f"{self.move_type} not done within {self.duration:g} s")
+        return RoleStep(WAYPOINT if self.dynamic == "position" else FLY, goal=self.goal, percent=percent)
+
+
+def _wrap(angle: float) -> float:
+    return (angle + math.pi) % (2.0 * math.pi) - math.pi

@@ -1,0 +1,197 @@
+"""The UAV manager's loop with every real part (roles, NAI, evaluator, recorder) against a
+kinematic stand-in for the simulator: roles end with the right outcomes, the evaluator
+stops a role on collision, preemption hovers, one recorded row per control step."""
+import math
+
+import numpy as np
+import pytest
+
+from magna_uav.config import configs_from_mission
+from magna_uav.evaluator import Evaluator
+from magna_uav.manager import Clock, UavManager
+from magna_uav.nai.interface import NavigationInterface
+from magna_uav.recorder import Recorder, read_csv
+from magna_uav.roles import (
+    FLYING_AUTO,
+    LANDED_ARMED,
+    BasicMoveRole,
+    FollowAgentAtDistanceRole,
+    FollowAgentAtPositionRole,
+    FollowPathRole,
+    LandRole,
+    TakeOffRole,
+)
+from magna_uav.world_view import WorldView
+
+from .kinematic import KinematicUav, KinematicWorld
+
+AGENTS = [{"ID": 1, "model": "iris", "mode": "sitl", "marker_color": [255, 0, 0, 0.5]},
+          {"ID": 2, "model": "iris", "mode": "sitl", "marker_color": [0, 0, 255, 0.5]}]
+
+
+def setup(positions, algorithm="simple", others_step=None):
+    configs = configs_from_mission(AGENTS[:len(positions)], "test")
+    view = WorldView(1, boundaries=[[-50, 50], [-50, 50], [0, 30]])
+    uavs = [KinematicUav(c.id, p, c.safety_radius, c.max_speed) for c, p in zip(configs, positions, strict=True)]
+    world = KinematicWorld(view, uavs, others_step=others_step)
+    nai = NavigationInterface(configs[0].max_speed, configs[0].safety_radius)
+    if algorithm != "simple":
+        nai.control(algorithm, "set", ["N_neighbors_aware", "timeHorizon"], [3, 4.0])
+    recorder = Recorder(1, [c.id for c in configs[1:]])
+    manager = UavManager(view, uavs[0], nai, Evaluator(configs[0]), recorder, Clock(world.now, world.sleep))
+    return manager, world, uavs, recorder, configs[0]
+
+
+def fly(manager, role, **kwargs):
+    return manager.run_role(role, **kwargs)
+
+
+def take_off(manager, uavs, height=3.0):
+    result = fly(manager, TakeOffRole(height))
+    assert result.outcome == "succeeded", result.message
+    assert uavs[0].state == FLYING_AUTO
+
+
+@pytest.mark.parametrize("algorithm", ["simple", "orca3"])
+def test_path_reaches_every_waypoint_within_the_accepted_radius(algorithm):
+    manager, world, uavs, recorder, config = setup([[0, 0, 0]], algorithm)
+    take_off(manager, uavs)
+    waypoints = [[4, 0, 3], [4, 4, 4], [0, 4, 3]]
+    closest = [math.inf] * 3
+
+    def watch(step):
+        for k, w in enumerate(waypoints):
+            closest[k] = min(closest[k], float(np.linalg.norm(uavs[0].position - w)))
+
+    result = fly(manager, FollowPathRole(waypoints, config.accepted_target_radius), feedback=watch)
+    assert result.outcome == "succeeded", result.message
+    assert all(c <= config.accepted_target_radius for c in closest), closest
+    assert "set_velocity" in uavs[0].calls
+
+
+def test_smoothed_path_and_position_dynamic_also_reach_every_waypoint():
+    manager, world, uavs, recorder, config = setup([[0, 0, 0]])
+    take_off(manager, uavs)
+    waypoints = [[3, 0, 3], [3, 3, 3], [0, 3, 4]]
+    for role in (FollowPathRole(waypoints, config.accepted_target_radius, smooth_path_mode=3),
+                 FollowPathRole(waypoints[::-1], config.accepted_target_radius, dynamic="position")):
+        result = fly(manager, role)
+        assert result.outcome == "succeeded", result.message
+    assert "go_to_waypoint" in uavs[0].calls
+
+
+def test_take_off_and_land_follow_the_ual_states():
+    manager, world, uavs, recorder, config = setup([[1, 1, 0]])
+    take_off(manager, uavs, 2.5)
+    assert uavs[0].position[2] == pytest.approx(2.5, abs=0.3)
+    result = fly(manager, LandRole())
+    assert result.outcome == "succeeded"
+    assert uavs[0].state == LANDED_ARMED
+
+
+def test_evaluator_stops_the_role_on_collision_and_the_uav_hovers():
+    # UAV 2 hovers on the path; simple guidance flies straight through it.
+    manager, world, uavs, recorder, config = setup([[0, 0, 0], [5, 0, 3]])
+    uavs[1].state = FLYING_AUTO
+    uavs[1].position = np.array([5.0, 0, 3])
+    uavs[1].hold_pose(uavs[1].position, 0.0)
+    take_off(manager, uavs)
+    result = fly(manager, FollowPathRole([[10, 0, 3]], config.accepted_target_radius))
+    assert result.outcome == "collision"
+    assert "uav_2" in result.message
+    assert uavs[0].calls[-1] == "hold_pose"
+
+
+def test_orca_flies_around_the_hovering_uav_without_collision():
+    manager, world, uavs, recorder, config = setup([[0, 0, 0], [5, 0, 3]], "orca3")
+    uavs[1].state = FLYING_AUTO
+    uavs[1].position = np.array([5.0, 0.2, 3])
+    uavs[1].hold_pose(uavs[1].position, 0.0)
+    take_off(manager, uavs)
+    result = fly(manager, FollowPathRole([[10, 0, 3]], config.accepted_target_radius))
+    assert result.outcome == "succeeded", result.message
+    assert manager.evaluator.collision_count == 0
+
+
+def test_preemption_stops_the_role_and_hovers_where_the_uav_is():
+    manager, world, uavs, recorder, config = setup([[0, 0, 0]])
+    take_off(manager, uavs)
+    result = fly(manager, FollowPathRole([[20, 0, 3]], config.accepted_target_radius),
+                 preempt_requested=lambda: world.t > 4.0)
+    assert result.outcome == "preempted"
+    where = uavs[0].position.copy()
+    for _ in range(20):
+        world.sleep()
+    assert np.linalg.norm(uavs[0].position - where) < 0.2, "a preempted UAV holds its pose"
+
+
+def moving_target(speed):
+    def step(world):
+        target = world.uavs[2]
+        target.state = FLYING_AUTO
+        target.set_velocity([speed, 0, 0])
+    return step
+
+
+def test_follow_at_distance_holds_the_distance():
+    manager, world, uavs, recorder, config = setup([[0, 0, 0], [3, 0, 3]], others_step=moving_target(0.5))
+    take_off(manager, uavs)
+    errors = []
+
+    def watch(step):
+        if world.t > 10.0:
+            errors.append(abs(np.linalg.norm(uavs[0].position - uavs[1].position) - 2.0))
+
+    result = fly(manager, FollowAgentAtDistanceRole(2, 2.0, duration=20.0), feedback=watch)
+    assert result.outcome == "succeeded"
+    assert max(errors) < 0.05, max(errors)  # exact kinematics: only the loop's own lag remains
+
+
+def test_follow_at_position_holds_the_offset():
+    manager, world, uavs, recorder, config = setup([[0, 0, 0], [3, 0, 3]], others_step=moving_target(0.5))
+    take_off(manager, uavs)
+    offset = np.array([-1.5, 1.5, 0.5])
+    errors = []
+
+    def watch(step):
+        if world.t > 10.0:
+            errors.append(float(np.linalg.norm(uavs[0].position - (uavs[1].position + offset))))
+
+    result = fly(manager, FollowAgentAtPositionRole(2, offset, duration=20.0), feedback=watch)
+    assert result.outcome == "succeeded"
+    # The naive prediction aims where the target will be 0.5 s ahead: with exact kinematics the
+    # follower leads by 0.5 s x 0.5 m/s, and by no more.
+    assert max(errors) < 0.5 * 0.5 + 0.05, max(errors)
+
+
+@pytest.mark.parametrize(("move", "direction", "value", "check"), [
+    ("translation", "up", 2.0, lambda p0, p, y: np.allclose(p - p0, [0, 0, 2], atol=0.3)),
+    ("translation", "left", 3.0, lambda p0, p, y: np.allclose(p - p0, [0, 3, 0], atol=0.3)),
+    ("translation", "backward", 1.5, lambda p0, p, y: np.allclose(p - p0, [-1.5, 0, 0], atol=0.3)),
+    ("rotation", "left", 90.0, lambda p0, p, y: abs(y - math.pi / 2) < math.radians(6)),
+    ("rotation", "right", 45.0, lambda p0, p, y: abs(y + math.pi / 4) < math.radians(6)),
+])
+@pytest.mark.parametrize("dynamic", ["position", "velocity"])
+def test_basic_moves_in_every_direction_and_both_dynamics(move, direction, value, check, dynamic):
+    manager, world, uavs, recorder, config = setup([[0, 0, 0]])
+    take_off(manager, uavs)
+    start = uavs[0].position.copy()
+    result = fly(manager, BasicMoveRole(move, direction, value, dynamic, duration=30.0))
+    assert result.outcome == "succeeded", result.message
+    assert check(start, uavs[0].position, uavs[0].yaw)
+
+
+def test_one_recorded_row_per_control_step_with_the_documented_columns(tmp_path):
+    manager, world, uavs, recorder, config = setup([[0, 0, 0], [8, 8, 3]])
+    take_off(manager, uavs)
+    before = recorder.rows
+    result = fly(manager, FollowPathRole([[3, 0, 3]], config.accepted_target_radius))
+    assert recorder.rows - before == result.steps
+    columns, rows = read_csv(recorder.save_csv(tmp_path / "uav_1.csv"))
+    assert len(rows) == recorder.rows
+    assert {"time", "sel_vel.x", "uav2.pos.x", "uav2.gap", "collision", "role", "algorithm"} <= set(columns)
+    flown = [r for r in rows if r["role"] == "path"]
+    assert len(flown) == result.steps
+    assert flown[-1]["outcome"] == "succeeded"
+    assert {r["algorithm"] for r in flown[:-1]} == {"simple"}
+    assert flown[-1]["algorithm"] == "ual", "the last step hands the UAV to UAL to hover"
