@@ -100,7 +100,8 @@ def crowd_view():
 def test_the_nearest_uavs_and_obstacles_within_neighbor_dist_are_sent_as_orca_agents():
     solver = SpySolver()
     nav = NavigationInterface(MAX_SPEED, 0.4, solver=solver)
-    nav.control("orca3", "set", ["N_neighbors_aware", "N_obstacles_aware", "neighborDist"], [2, 5, 4.0])
+    nav.control("orca3", "set", ["N_neighbors_aware", "N_obstacles_aware", "neighborDist", "agent_radius"],
+                [2, 5, 4.0, 0.35])
     command = nav.velocity(crowd_view(), Goal([10, 0, 5]))
     assert command.neighbors == (3, 2)  # nearest first; 4 is 4.4 m away (gap 3.7) but only 2 are taken
     assert command.obstacles == ("wall", "post")  # gaps 0.6 and 1.1; "far" is beyond neighborDist
@@ -113,9 +114,20 @@ def test_the_nearest_uavs_and_obstacles_within_neighbor_dist_are_sent_as_orca_ag
     np.testing.assert_allclose(others[0].preferred_velocity, [-0.6, 0, 0])  # their current velocity
     np.testing.assert_allclose(others[2].velocity, 0)
     np.testing.assert_allclose(others[2].preferred_velocity, 0)
-    assert [o.radius for o in others] == [0.3, 0.3, 2.0, 0.5]
+    # UAVs get at least agent_radius (0.35 > their 0.3, < our 0.4); obstacles keep their own
+    assert [o.radius for o in others] == [0.35, 0.35, 2.0, 0.5]
     assert params.max_neighbors == 4 and params.neighbor_dist == 4.0  # the solver keeps every agent sent
     np.testing.assert_allclose(command.velocity, reference.new_velocity(agent, others, params).velocity)
+
+
+def test_agent_radius_is_the_margin_around_smaller_safety_spheres():
+    solver = SpySolver()
+    nav = NavigationInterface(MAX_SPEED, 0.3, solver=solver)
+    nav.control("orca3", "set", ["agent_radius"], [0.5])  # the original missions' value
+    nav.velocity(crowd_view(), Goal([10, 0, 5]))
+    agent, others, _ = solver.calls[-1]
+    assert agent.radius == 0.5
+    assert [o.radius for o in others if o.cooperative] == [0.5] * sum(o.cooperative for o in others)
 
 
 def test_n_obstacles_follows_n_neighbors_until_set():

@@ -25,6 +25,10 @@ from magna_uav.roles import FLY, HOVER, LAND, TAKE_OFF, WAIT, WAYPOINT, Role, Ro
 PREEMPTED = "preempted"
 ABORTED = "aborted"
 
+# What ends a role when it newly appears, by priority, as the evaluator orders its outcomes.
+_TROUBLES = (("collision", "collision"), ("out_of_bounds", ABORTED), ("GS_critical_event", "GS_critical_event"),
+             ("low_battery", "low_battery"))
+
 log = logging.getLogger("magna_uav.manager")
 
 
@@ -32,6 +36,31 @@ log = logging.getLogger("magna_uav.manager")
 class Clock:
     now: Callable[[], float]
     sleep: Callable[[], None]  # until the next control step
+
+
+def troubles(evaluation) -> set[str]:
+    """The evaluation's conditions as names: "collision:<what>" per contact, and the flags."""
+    found = {f"collision:{name}" for name in evaluation.collided_with}
+    for flag, name in (("out_of_bounds", "out_of_bounds"), ("gs_critical", "GS_critical_event"),
+                       ("low_battery", "low_battery")):
+        if getattr(evaluation, flag):
+            found.add(name)
+    return found
+
+
+def new_trouble(evaluation, standing: set[str]) -> str | None:
+    """The outcome for conditions that appeared after the role started (None when there are none).
+
+    Conditions already there when a role starts do not end it: the ground station sent that role
+    knowing them (to separate two UAVs in contact, to land on a low battery, a safety branch).
+    `standing` forgets a condition once it clears, so it ends the role if it comes back."""
+    now = troubles(evaluation)
+    standing &= now
+    fresh = now - standing
+    for prefix, outcome in _TROUBLES:
+        if any(name.split(":")[0] == prefix for name in fresh):
+            return outcome
+    return None
 
 
 @dataclass
@@ -57,6 +86,7 @@ class UavManager:
         """Fly `role` until it ends, the evaluator stops it, or the ground station preempts it."""
         self.role_name, self._hold, self._sent_waypoint = role.name, None, None
         steps = 0
+        standing: set[str] | None = None  # conditions present when the role started
         try:
             while True:
                 if preempt_requested():
@@ -65,10 +95,13 @@ class UavManager:
                 now = self.clock.now()
                 with self.lock:
                     evaluation = self.evaluator.step(self.view, self.gs_critical_event)
-                    if evaluation.outcome is not None:
+                    if standing is None:
+                        standing = troubles(evaluation)
+                    outcome = new_trouble(evaluation, standing)
+                    if outcome is not None:
                         self._hover()
-                        self._record(now, None, np.zeros(3), "ual", evaluation, None, evaluation.outcome)
-                        return RoleResult(evaluation.outcome, evaluation.reason, steps + 1, [evaluation.outcome])
+                        self._record(now, None, np.zeros(3), "ual", evaluation, None, outcome)
+                        return RoleResult(outcome, evaluation.reason, steps + 1, [outcome])
                     step = role.step(self.view, now)
                     chosen, algorithm, feasible = self._execute(step)
                     self._record(now, step.goal, chosen, algorithm, evaluation, feasible, step.outcome or "")

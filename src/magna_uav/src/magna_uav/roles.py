@@ -187,11 +187,13 @@ class FollowAgentAtDistanceRole(Role):
 
 
 class FollowAgentAtPositionRole(FollowAgentAtDistanceRole):
-    """Hold `offset` (map frame) from UAV `target_id`, aiming where it will be one `prediction` ahead."""
+    """Hold `offset` (map frame) from UAV `target_id`, aiming where it will be `prediction` seconds ahead
+    (naive constant-velocity prediction; 0.3 s is about the lag of a multirotor reaching a new velocity)."""
 
     name = "agent_ap"
 
-    def __init__(self, target_id: int, offset, duration: float = 0.0, prediction: float = 0.5, lost_after: float = 2.0):
+    def __init__(self, target_id: int, offset, duration: float = 0.0, prediction: float = 0.3,
+                 lost_after: float = 2.0):
         super().__init__(target_id, 0.0, duration, lost_after)
         self.offset = np.asarray(offset, dtype=float).reshape(3)
         self.prediction = prediction  # s: naive constant-velocity prediction of the target

@@ -13,9 +13,9 @@ magna_msgs/AlgorithmControl service) through `NavigationInterface.control`:
   of a TorchScript file; or the request's text_value), neighborDist (6 m: selection and
   padding of the inputs, `inputs`).
 
-ORCA-3D's agent_radius and maxSpeed are the solver's defaults for agents that give no
-radius / speed of their own; the NAI always gives them (own: the safety radius and the
-UAV's max speed; others: their safety radius), so they are kept but change nothing.
+ORCA-3D's agent_radius is the radius every UAV has in ORCA when its safety radius is
+smaller: the margin that absorbs the autopilot's lag (`orca`). maxSpeed is kept but changes
+nothing: the NAI always gives the UAV's own max speed.
 
 Actions: "set" selects the algorithm and applies the parameters given; "configure" only
 applies them (to the named algorithm, selected or not). Parameters not given keep their

@@ -1,10 +1,16 @@
 """ORCA-3D in the NAI: own UAV, nearest UAVs and obstacles as magna_orca_cpp agents, one solve.
 
 - own UAV: position and velocity; preferred velocity = the simple-guidance velocity;
-  radius = the NAI's safety radius; max speed = the UAV's; cooperative.
+  radius = the larger of the safety radius and ORCA's agent_radius; max speed = the UAV's;
+  cooperative.
 - the N nearest other UAVs: position and velocity; preferred velocity = their current
-  velocity; radius = their safety radius; cooperative (each takes half the avoidance);
-  max speed = the UAV's (a one-shot solve does not use it).
+  velocity; radius = the larger of their safety radius and agent_radius; cooperative
+  (each takes half the avoidance); max speed = the UAV's (a one-shot solve does not use it).
+
+agent_radius is the missions' margin: ORCA brings spheres exactly into contact, and a
+real UAV reaches a new velocity only after its autopilot's lag, so ORCA's spheres must be
+larger than the evaluator's safety spheres (the original missions use 0.5 m with 0.3 m
+safety radii).
 - the M nearest obstacles: bounding-sphere centre and radius, velocity 0, not
   cooperative (we take all the avoidance).
 
@@ -61,13 +67,13 @@ def default_solver():
 
 
 def orca_agents(view: WorldView, preferred: np.ndarray, neighbors: Neighbors, radius: float,
-                max_speed: float) -> tuple[Agent, list[Agent]]:
-    """The own agent and its neighbours as in the module table."""
+                max_speed: float, agent_radius: float = 0.0) -> tuple[Agent, list[Agent]]:
+    """The own agent and its neighbours as in the module table (UAV radii at least `agent_radius`)."""
     own = view.own
-    me = Agent(position=own.position, velocity=own.velocity, preferred_velocity=preferred, radius=radius,
-               max_speed=max_speed)
+    me = Agent(position=own.position, velocity=own.velocity, preferred_velocity=preferred,
+               radius=max(radius, agent_radius), max_speed=max_speed)
     others = [Agent(position=a.position, velocity=a.velocity, preferred_velocity=a.velocity,
-                    radius=a.safety_radius, max_speed=max_speed) for a in neighbors.agents]
+                    radius=max(a.safety_radius, agent_radius), max_speed=max_speed) for a in neighbors.agents]
     others += [Agent(position=o.position, radius=o.radius, max_speed=max_speed, cooperative=False)
                for o in neighbors.obstacles]
     return me, others
@@ -96,7 +102,7 @@ class OrcaNavigator:
     def velocity(self, view: WorldView, preferred: np.ndarray, params: Params, n_obstacles: int, radius: float,
                  max_speed: float) -> OrcaResult:
         neighbors = select_neighbors(view, params.max_neighbors, n_obstacles, params.neighbor_dist)
-        me, others = orca_agents(view, preferred, neighbors, radius, max_speed)
+        me, others = orca_agents(view, preferred, neighbors, radius, max_speed, params.agent_radius)
         solver = self.solver
         solution = solver.new_velocity(me, others, dataclasses.replace(params, max_neighbors=len(others)))
         if not self._warned and getattr(solver, "using_service", True) is False:

@@ -1,0 +1,276 @@
+#!/usr/bin/env python3
+"""Two UAV managers flying magna_sim UAVs, driven as the ground station drives them.
+
+Runs in uav_manager.test (magna_sim, the world node with one obstacle, orca3d_server,
+managers for UAVs 1 and 2). Goals go through the SimpleAction protocol; positions are
+checked on the simulator's own pose topics, not on what the managers believe.
+"""
+import json
+import math
+import sys
+import tempfile
+import threading
+import time
+import unittest
+from pathlib import Path
+
+import numpy as np
+import rospy
+import rostest
+from geometry_msgs.msg import PoseStamped, Vector3
+from magna_msgs import msg as actions
+from magna_msgs.srv import AlgorithmControl
+
+from magna_sm.simple_action import SimpleActionClient
+from magna_uav.nai.inputs import input_names, output_names
+from magna_uav.recorder import columns, read_csv
+
+WALL_LIMIT = 120.0  # s of wall time any single goal may take (a guard against hangs)
+SAFETY = 0.3 + 0.3  # sum of the iris safety radii
+ACCEPTED = 0.9  # iris accepted_target_radius
+TYPES = {"take_off": "TakeOff", "land": "Land", "basic_move": "BasicMove", "follow_path": "FollowPath",
+         "follow_agent_ad": "FollowAgentAD", "follow_agent_ap": "FollowAgentAP", "save_csv": "SaveCSV"}
+
+
+def pose(x, y, z):
+    msg = PoseStamped()
+    msg.header.frame_id = "map"
+    msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = x, y, z
+    msg.pose.orientation.w = 1.0
+    return msg
+
+
+class Uav:
+    def __init__(self, uav_id):
+        self.id = uav_id
+        self.position = None
+        self.trace = []  # (sim time, position) while recording
+        self.tracing = False
+        self.lock = threading.Lock()
+        rospy.Subscriber(f"/uav_{uav_id}/ual/pose", PoseStamped, self._on_pose)
+        self.clients = {}
+        for action, kind in TYPES.items():
+            client = SimpleActionClient(f"/magna/uav_{uav_id}/{action}", getattr(actions, kind + "Action"))
+            if not client.wait_for_server(rospy.Duration(60.0)):
+                raise AssertionError(f"no action server /magna/uav_{uav_id}/{action}")
+            self.clients[action] = client
+        name = f"/magna/uav_{uav_id}/algorithm_control"
+        rospy.wait_for_service(name, timeout=60.0)
+        self.algorithm = rospy.ServiceProxy(name, AlgorithmControl)
+
+    def _on_pose(self, msg):
+        p = msg.pose.position
+        with self.lock:
+            self.position = np.array([p.x, p.y, p.z])
+            if self.tracing:
+                self.trace.append((msg.header.stamp.to_sec(), self.position.copy()))
+
+    def where(self):
+        with self.lock:
+            return None if self.position is None else self.position.copy()
+
+    def send(self, action, **fields):
+        goal = getattr(actions, TYPES[action] + "Goal")(**fields)
+        self.clients[action].send_goal(goal)
+
+    def result(self, action):
+        client = self.clients[action]
+        deadline = time.monotonic() + WALL_LIMIT
+        while not client.wait_for_result(rospy.Duration(0.5)):
+            if time.monotonic() > deadline or rospy.is_shutdown():
+                raise AssertionError(f"UAV {self.id} {action}: no result within {WALL_LIMIT:g} s of wall time")
+        return client.get_result()
+
+    def do(self, action, **fields):
+        self.send(action, **fields)
+        return self.result(action)
+
+    def use(self, name, params=(), values=(), text_value=""):
+        answer = self.algorithm(name=name, action="set", params=list(params), values=list(values),
+                                text_value=text_value)
+        assert answer.success, answer.message
+
+
+def goto(uav, x, y, z):
+    result = uav.do("follow_path", path=[pose(x, y, z)], dynamic="position")
+    assert result.outcome == "succeeded", f"UAV {uav.id} to ({x}, {y}, {z}): {result.outcome} {result.message}"
+
+
+def min_distance(a, b):
+    """Smallest distance between two traces, pairing samples by nearest stamp."""
+    times_b = np.array([t for t, _ in b.trace])
+    best = math.inf
+    for t, p in a.trace:
+        k = int(np.argmin(np.abs(times_b - t)))
+        if abs(times_b[k] - t) < 0.05:
+            best = min(best, float(np.linalg.norm(p - b.trace[k][1])))
+    return best
+
+
+def sim_sleep(seconds):
+    rospy.sleep(rospy.Duration(seconds))
+
+
+class UavManagerFlights(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        rospy.init_node("uav_manager_flights")
+        cls.uav1, cls.uav2 = Uav(1), Uav(2)
+        # Two altitude layers keep the repositioning flights apart: UAV 1 works at 3 m, and
+        # UAV 2 waits at 6 m when a test does not need it.
+        for uav, height in ((cls.uav1, 3.0), (cls.uav2, 6.0)):
+            result = uav.do("take_off", height=height)
+            assert result.outcome == "succeeded", f"take off {uav.id}: {result.message}"
+
+    def test_1_a_path_with_each_solver_reaches_every_waypoint(self):
+        uav = self.uav1
+        model = self.network_file()
+        waypoints = [(3.0, 0.0, 3.0), (3.0, 4.0, 4.0), (-2.0, 4.0, 3.0)]
+        for name, params, values, text in (("simple", [], [], ""),
+                                           ("orca3", ["N_neighbors_aware", "timeHorizon"], [2, 4.0], ""),
+                                           ("neural_network", [], [], str(model))):
+            goto(uav, 0.0, 0.0, 3.0)
+            uav.use(name, params, values, text)
+            uav.trace.clear()
+            uav.tracing = True
+            result = uav.do("follow_path", path=[pose(*w) for w in waypoints], dynamic="velocity")
+            uav.tracing = False
+            self.assertEqual(result.outcome, "succeeded", f"{name}: {result.message}")
+            for w in waypoints:
+                closest = min(float(np.linalg.norm(p - w)) for _, p in uav.trace)
+                self.assertLessEqual(closest, ACCEPTED, f"{name}: waypoint {w} missed by {closest:.2f} m")
+        uav.use("simple")
+
+    def network_file(self):
+        """A TorchScript network flying straight at the goal (sel_vel = goal_pose_rel): not trained,
+        but exactly the file format mlr exports, loaded and flown through the NAI."""
+        import torch
+
+        n, m = 2, 2  # N_neighbors_aware and N_obstacles_aware of uav 1 after the orca3 set above
+        size = len(input_names("path", n, m))
+        layer = torch.nn.Linear(size, 3, bias=False)
+        with torch.no_grad():
+            layer.weight.zero_()
+            for axis in range(3):
+                layer.weight[axis, 3 + axis] = 1.0
+        folder = Path(tempfile.mkdtemp(prefix="magna_uav_nn_"))
+        path = folder / "towards_goal.pt"
+        torch.jit.script(torch.nn.Sequential(layer)).save(str(path))
+        spec = {"role": "path", "n_neighbors": n, "n_obstacles": m, "inputs": input_names("path", n, m),
+                "outputs": output_names(), "image": None}
+        path.with_suffix(".json").write_text(json.dumps(spec))
+        return path
+
+    def head_on(self, name, params=(), values=()):
+        """UAV 1 and UAV 2 swap their places on the x axis, flying straight at each other."""
+        a, b = self.uav1, self.uav2
+        a_to, b_to = (-a.where()[0], 0.0, 3.0), (-b.where()[0], 0.0, 3.0)
+        for uav in (a, b):
+            uav.use(name, params, values)
+            uav.trace.clear()
+            uav.tracing = True
+        a.send("follow_path", path=[pose(*a_to)], dynamic="velocity")
+        b.send("follow_path", path=[pose(*b_to)], dynamic="velocity")
+        outcomes = [a.result("follow_path"), b.result("follow_path")]
+        for uav in (a, b):
+            uav.tracing = False
+        return outcomes, min_distance(a, b)
+
+    def test_2_head_on_with_orca_keeps_separation_and_simple_guidance_collides(self):
+        goto(self.uav1, -5.0, 0.0, 3.0)
+        self.assertEqual(self.uav2.do("follow_path", path=[pose(5.0, 0.0, 6.0), pose(5.0, 0.0, 3.0)],
+                                      dynamic="position").outcome, "succeeded")
+        outcomes, closest = self.head_on("orca3", ["N_neighbors_aware", "timeHorizon"], [2, 4.0])
+        self.assertEqual([o.outcome for o in outcomes], ["succeeded", "succeeded"], [o.message for o in outcomes])
+        self.assertGreaterEqual(closest, SAFETY - 0.05, "ORCA-3D kept the safety spheres apart")
+        outcomes, closest = self.head_on("simple")
+        self.assertIn("collision", [o.outcome for o in outcomes], [o.message for o in outcomes])
+        self.assertLess(closest, SAFETY + 0.1)
+        for uav in (self.uav1, self.uav2):
+            uav.use("simple")
+        # Still in contact: a role that starts so may separate them (only a new contact would end it).
+        result = self.uav2.do("basic_move", move_type="translation", direction="up", value=3.0, dynamic="position")
+        self.assertEqual(result.outcome, "succeeded", result.message)
+
+    def follow(self, action, check, **fields):
+        leader, follower = self.uav1, self.uav2
+        goto(leader, -4.0, 4.0, 3.0)
+        result = follower.do("follow_path", path=[pose(-6.0, 4.0, 6.0), pose(-6.0, 4.0, 3.0)], dynamic="position")
+        self.assertEqual(result.outcome, "succeeded", result.message)
+        follower.send(action, target_id=1, duration=25.0, **fields)
+        sim_sleep(3.0)
+        for uav in (leader, follower):
+            uav.trace.clear()
+            uav.tracing = True
+        leader.send("follow_path", path=[pose(4.0, 4.0, 3.0), pose(4.0, -4.0, 3.0)], dynamic="velocity")
+        self.assertEqual(leader.result("follow_path").outcome, "succeeded")
+        sim_sleep(4.0)
+        for uav in (leader, follower):
+            uav.tracing = False
+        follower.clients[action].cancel_goal()
+        self.assertEqual(follower.result(action).outcome, "preempted")
+        result = follower.do("basic_move", move_type="translation", direction="up", value=3.0, dynamic="position")
+        self.assertEqual(result.outcome, "succeeded", result.message)
+        errors = []
+        times = np.array([t for t, _ in leader.trace])
+        start = times[0] + 5.0  # let the follower settle after the leader sets off
+        for t, p in follower.trace:
+            k = int(np.argmin(np.abs(times - t)))
+            if t > start and abs(times[k] - t) < 0.05:
+                errors.append(check(p, leader.trace[k][1]))
+        return errors
+
+    def test_3_follow_at_distance_holds_it(self):
+        errors = self.follow("follow_agent_ad", lambda f, lead: abs(np.linalg.norm(f - lead) - 2.0), distance=2.0)
+        self.assertGreater(len(errors), 20)
+        rospy.loginfo("follow_agent_ad: distance error median %.2f m, max %.2f m", np.median(errors), max(errors))
+        self.assertLess(max(errors), 0.5, "the tolerance documented in src/magna_uav/README.md")
+
+    def test_4_follow_at_position_holds_the_offset(self):
+        offset = np.array([-1.5, 1.5, 0.5])
+        errors = self.follow("follow_agent_ap", lambda f, lead: float(np.linalg.norm(f - (lead + offset))),
+                             pos=Vector3(*offset))
+        self.assertGreater(len(errors), 20)
+        rospy.loginfo("follow_agent_ap: offset error median %.2f m, max %.2f m", np.median(errors), max(errors))
+        self.assertLess(max(errors), 1.0, "the tolerance documented in src/magna_uav/README.md")
+
+    def test_5_a_preempted_role_stops_and_the_uav_hovers(self):
+        uav = self.uav1
+        goto(uav, -5.0, 8.0, 3.0)
+        uav.send("follow_path", path=[pose(8.0, 8.0, 3.0)], dynamic="velocity")
+        sim_sleep(2.0)
+        uav.clients["follow_path"].cancel_goal()
+        self.assertEqual(uav.result("follow_path").outcome, "preempted")
+        stopped = uav.where()
+        sim_sleep(3.0)
+        self.assertLess(float(np.linalg.norm(uav.where() - stopped)), 0.3, "hovers where it was preempted")
+        self.assertLess(stopped[0], 6.0, "it stopped well before the end of the path")
+
+    def test_6_the_csv_has_one_row_per_control_step(self):
+        uav = self.uav1
+        folder = Path(tempfile.mkdtemp(prefix="magna_uav_csv_"))
+        result = uav.do("save_csv", path=str(folder / "uav_1.csv"))
+        self.assertEqual(result.outcome, "succeeded", result.message)
+        header, rows = read_csv(folder / "uav_1.csv")
+        self.assertEqual(header, columns([2]))
+        self.assertGreater(len(rows), 200)
+        times = np.array([r["time"] for r in rows])
+        steps = np.diff(times)
+        # One row per control step: at 10 Hz of sim time, consecutive rows of a role are 0.1 s apart.
+        within_roles = steps[steps < 0.5]
+        self.assertAlmostEqual(float(np.median(within_roles)), 0.1, delta=0.01)
+        self.assertGreater(float(np.mean(np.abs(within_roles - 0.1) < 0.02)), 0.9)
+        self.assertIn("obs0.name", header)
+        self.assertTrue(any(r["obs0.name"] for r in rows), "the world's obstacle is seen")
+        roles = {r["role"] for r in rows}
+        self.assertTrue({"take_off", "path", "agent_ad", "agent_ap"} <= roles or {"take_off", "path"} <= roles, roles)
+        again = uav.do("save_csv", path=str(folder / "uav_1.csv"))
+        self.assertEqual(again.outcome, "succeeded", "its own file may be rewritten")
+        (folder / "other.csv").write_text("keep me")
+        refused = uav.do("save_csv", path=str(folder / "other.csv"))
+        self.assertEqual(refused.outcome, "aborted")
+        self.assertEqual((folder / "other.csv").read_text(), "keep me")
+
+
+if __name__ == "__main__":
+    rostest.rosrun("magna_uav", "uav_manager_flights", UavManagerFlights, sys.argv)
