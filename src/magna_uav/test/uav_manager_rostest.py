@@ -19,7 +19,8 @@ import rospy
 import rostest
 from geometry_msgs.msg import PoseStamped, Vector3
 from magna_msgs import msg as actions
-from magna_msgs.srv import AlgorithmControl
+from magna_msgs.srv import AlgorithmControl, Die, StateActualization, StateActualizationResponse
+from std_msgs.msg import String
 
 from magna_sm.simple_action import SimpleActionClient
 from magna_uav.nai.inputs import input_names, output_names
@@ -115,12 +116,21 @@ class UavManagerFlights(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
         rospy.init_node("uav_manager_flights")
+        # Stands in for the ground station's state-actualization service: keeps every report.
+        cls.reports = []
+        rospy.Service("/magna/gs/state_actualization", StateActualization, cls.on_report)
+        cls.critical = rospy.Publisher("/magna/gs/critical_event", String, queue_size=1, latch=True)
         cls.uav1, cls.uav2 = Uav(1), Uav(2)
         # Two altitude layers keep the repositioning flights apart: UAV 1 works at 3 m, and
         # UAV 2 waits at 6 m when a test does not need it.
         for uav, height in ((cls.uav1, 3.0), (cls.uav2, 6.0)):
             result = uav.do("take_off", height=height)
             assert result.outcome == "succeeded", f"take off {uav.id}: {result.message}"
+
+    @classmethod
+    def on_report(cls, req):
+        cls.reports.append((req.id, req.state, req.critical_event))
+        return StateActualizationResponse(success=True, message="")
 
     def test_1_a_path_with_each_solver_reaches_every_waypoint(self):
         uav = self.uav1
@@ -270,6 +280,45 @@ class UavManagerFlights(unittest.TestCase):
         refused = uav.do("save_csv", path=str(folder / "other.csv"))
         self.assertEqual(refused.outcome, "aborted")
         self.assertEqual((folder / "other.csv").read_text(), "keep me")
+
+    def test_7_a_ground_station_critical_event_ends_the_role(self):
+        uav = self.uav1
+        uav.send("follow_path", path=[pose(-8.0, -8.0, 3.0)], dynamic="velocity")
+        sim_sleep(1.0)
+        self.critical.publish(String("operator"))
+        result = uav.result("follow_path")
+        self.critical.publish(String(""))
+        self.assertEqual(result.outcome, "GS_critical_event", result.message)
+
+    def test_8_states_and_critical_events_reach_the_ground_station(self):
+        deadline = time.monotonic() + 10.0
+        while time.monotonic() < deadline and not any(r[2] == "GS_critical_event" for r in self.reports):
+            time.sleep(0.1)
+        states = {(uav_id, state) for uav_id, state, _ in self.reports}
+        self.assertIn((1, "take_off"), states)
+        self.assertIn((2, "follow_agent_ad"), states)
+        self.assertIn((1, "follow_path_succeeded"), states)
+        events = {(uav_id, event) for uav_id, _, event in self.reports if event}
+        self.assertTrue({(1, "collision"), (2, "collision")} & events, events)
+        self.assertIn((1, "GS_critical_event"), events)
+
+    def test_9_die_saves_the_data_and_ends_the_manager(self):
+        name = "/magna/uav_2/die"
+        rospy.wait_for_service(name, timeout=10.0)
+        answer = rospy.ServiceProxy(name, Die)(save_data=True)
+        self.assertTrue(answer.success, answer.message)
+        written = Path(answer.message.split(" rows written to ")[1].split(";")[0])
+        self.assertTrue(written.is_file(), answer.message)
+        self.assertEqual(read_csv(written)[0], columns([1]))
+        deadline = time.monotonic() + 30.0
+        while time.monotonic() < deadline:
+            try:
+                rospy.wait_for_service(name, timeout=0.2)
+            except rospy.ROSException:
+                break
+            time.sleep(0.2)
+        else:
+            self.fail("the die service is still there 30 s after dying")
 
 
 if __name__ == "__main__":
