@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from magna_uav.roles import FLY, HOVER, LAND, TAKE_OFF, WAIT, WAYPOINT, Role, RoleStep
+from magna_uav.roles import FLY, FLYING_AUTO, HOVER, LAND, TAKE_OFF, WAIT, WAYPOINT, Role, RoleStep
 
 PREEMPTED = "preempted"
 ABORTED = "aborted"
@@ -142,7 +142,8 @@ class UavManager:
         return np.zeros(3), "ual", None
 
     def _hover(self) -> None:
-        if not self.view.has_own:
+        # Only a flying UAV can hold a pose (UAL refuses set_pose on the ground, during take-off or landing).
+        if not self.view.has_own or self.view.own.ual_state != FLYING_AUTO:
             return
         if self._hold is None:
             own = self.view.own
