@@ -24,16 +24,6 @@ from pathlib import Path
 import numpy as np
 
 
-def pose(x, y, z):
-    from geometry_msgs.msg import PoseStamped
-
-    msg = PoseStamped()
-    msg.header.frame_id = "map"
-    msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = x, y, z
-    msg.pose.orientation.w = 1.0
-    return msg
-
-
 def wait_all(clients, limit: float) -> list:
     import rospy
 
@@ -70,6 +60,7 @@ def fly_fleet(n: int, rate: float, folder: Path) -> dict:
         )
 
         from magna_sm.simple_action import SimpleActionClient
+        from magna_uav.commanders import pose_stamped
 
         rospy.init_node("uav_control_loop_bench", anonymous=True, disable_signals=True)
         try:
@@ -89,7 +80,7 @@ def fly_fleet(n: int, rate: float, folder: Path) -> dict:
             ys = [(i - (n + 1) / 2) * 2.0 for i in ids]
             wall0 = time.monotonic()
             for c, y in zip(paths, ys, strict=True):
-                c.send_goal(FollowPathGoal(path=[pose(10.0, -y, 3.0)], dynamic="velocity"))
+                c.send_goal(FollowPathGoal(path=[pose_stamped((10.0, -y, 3.0))], dynamic="velocity"))
             results = wait_all(paths, 600)
             wall = time.monotonic() - wall0
             for i, c in zip(ids, save, strict=True):

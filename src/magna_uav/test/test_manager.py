@@ -46,6 +46,15 @@ def fly(manager, role, **kwargs):
     return manager.run_role(role, **kwargs)
 
 
+def with_uav_2_hovering_at(position, algorithm="simple"):
+    """UAV 1 flown by the manager, up at 3 m; UAV 2 already hovering at `position`."""
+    manager, world, uavs, recorder, config = setup([[0, 0, 0], position], algorithm)
+    uavs[1].state = FLYING_AUTO
+    uavs[1].hold_pose(uavs[1].position, 0.0)
+    take_off(manager, uavs)
+    return manager, world, uavs, recorder, config
+
+
 def take_off(manager, uavs, height=3.0):
     result = fly(manager, TakeOffRole(height))
     assert result.outcome == "succeeded", result.message
@@ -91,11 +100,7 @@ def test_take_off_and_land_follow_the_ual_states():
 
 def test_evaluator_stops_the_role_on_collision_and_the_uav_hovers():
     # UAV 2 hovers on the path; simple guidance flies straight through it.
-    manager, world, uavs, recorder, config = setup([[0, 0, 0], [5, 0, 3]])
-    uavs[1].state = FLYING_AUTO
-    uavs[1].position = np.array([5.0, 0, 3])
-    uavs[1].hold_pose(uavs[1].position, 0.0)
-    take_off(manager, uavs)
+    manager, world, uavs, recorder, config = with_uav_2_hovering_at([5.0, 0.0, 3.0])
     result = fly(manager, FollowPathRole([[10, 0, 3]], config.accepted_target_radius))
     assert result.outcome == "collision"
     assert "uav_2" in result.message
@@ -103,11 +108,7 @@ def test_evaluator_stops_the_role_on_collision_and_the_uav_hovers():
 
 
 def test_orca_flies_around_the_hovering_uav_without_collision():
-    manager, world, uavs, recorder, config = setup([[0, 0, 0], [5, 0, 3]], "orca3")
-    uavs[1].state = FLYING_AUTO
-    uavs[1].position = np.array([5.0, 0.2, 3])
-    uavs[1].hold_pose(uavs[1].position, 0.0)
-    take_off(manager, uavs)
+    manager, world, uavs, recorder, config = with_uav_2_hovering_at([5.0, 0.2, 3.0], "orca3")
     result = fly(manager, FollowPathRole([[10, 0, 3]], config.accepted_target_radius))
     assert result.outcome == "succeeded", result.message
     assert manager.evaluator.collision_count == 0
@@ -198,11 +199,7 @@ def test_one_recorded_row_per_control_step_with_the_documented_columns(tmp_path)
 
 
 def test_a_role_started_in_contact_may_separate_the_uavs_but_a_new_contact_ends_it():
-    manager, world, uavs, recorder, config = setup([[0, 0, 0], [5, 0, 3]])
-    uavs[1].state = FLYING_AUTO
-    uavs[1].position = np.array([5.0, 0, 3])
-    uavs[1].hold_pose(uavs[1].position, 0.0)
-    take_off(manager, uavs)
+    manager, world, uavs, recorder, config = with_uav_2_hovering_at([5.0, 0.0, 3.0])
     assert fly(manager, FollowPathRole([[10, 0, 3]], config.accepted_target_radius)).outcome == "collision"
     # In contact now: climbing away is allowed, it is what the ground station asks for.
     assert fly(manager, BasicMoveRole("translation", "up", 2.0)).outcome == "succeeded"

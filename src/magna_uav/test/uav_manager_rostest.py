@@ -23,6 +23,7 @@ from magna_msgs.srv import AlgorithmControl, Die, StateActualization, StateActua
 from std_msgs.msg import String
 
 from magna_sm.simple_action import SimpleActionClient
+from magna_uav.commanders import pose_stamped
 from magna_uav.nai.inputs import input_names, output_names
 from magna_uav.recorder import columns, read_csv
 
@@ -34,11 +35,7 @@ TYPES = {"take_off": "TakeOff", "land": "Land", "basic_move": "BasicMove", "foll
 
 
 def pose(x, y, z):
-    msg = PoseStamped()
-    msg.header.frame_id = "map"
-    msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = x, y, z
-    msg.pose.orientation.w = 1.0
-    return msg
+    return pose_stamped((x, y, z))
 
 
 class Uav:

@@ -22,8 +22,15 @@ class CommandRefused(RuntimeError):
     """The UAL server refused a command; the message carries its reason."""
 
 
-def _quaternion_from_yaw(yaw: float) -> tuple[float, float, float, float]:
-    return 0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0)
+def pose_stamped(position: Sequence[float], yaw: float = 0.0, frame: str = FRAME) -> PoseStamped:
+    """A PoseStamped in `frame` at `position`, level, heading `yaw` (stamped now)."""
+    msg = PoseStamped()
+    msg.header.stamp = rospy.Time.now()
+    msg.header.frame_id = frame
+    msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = (float(p) for p in position)
+    orientation = msg.pose.orientation
+    orientation.x, orientation.y, orientation.z, orientation.w = 0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0)
+    return msg
 
 
 class UalCommander:
@@ -56,7 +63,7 @@ class UalCommander:
         self._call("land", blocking=False)
 
     def go_to_waypoint(self, position: Sequence[float], yaw: float = 0.0) -> None:
-        self._call("go_to_waypoint", waypoint=self.pose_msg(position, yaw), blocking=False)
+        self._call("go_to_waypoint", waypoint=pose_stamped(position, yaw), blocking=False)
 
     def set_home(self, set_z: bool = True) -> None:
         self._call("set_home", set_z=bool(set_z))
@@ -71,14 +78,4 @@ class UalCommander:
 
     def hold_pose(self, position: Sequence[float], yaw: float) -> None:
         """Hover: stream the pose to hold (a zero velocity would drift with the simulator's lag)."""
-        self._set_pose.publish(self.pose_msg(position, yaw))
-
-    @staticmethod
-    def pose_msg(position: Sequence[float], yaw: float = 0.0) -> PoseStamped:
-        msg = PoseStamped()
-        msg.header.stamp = rospy.Time.now()
-        msg.header.frame_id = FRAME
-        msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = (float(p) for p in position)
-        q = _quaternion_from_yaw(yaw)
-        msg.pose.orientation.x, msg.pose.orientation.y, msg.pose.orientation.z, msg.pose.orientation.w = q
-        return msg
+        self._set_pose.publish(pose_stamped(position, yaw))

@@ -95,9 +95,10 @@ class Settings:
 
 def read_settings(param=rospy.get_param) -> Settings:
     """The node's private parameters, checked; SettingsError names the bad one."""
-    if not param("~id", None) and param("~id", None) != 0:
+    raw_id = param("~id", None)
+    if raw_id is None:
         raise SettingsError("~id is missing: give this UAV's id, e.g. _id:=1")
-    uav_id = int(param("~id"))
+    uav_id = int(raw_id)
     mission_file = param("~mission_file", "")
     try:
         if mission_file:
@@ -240,6 +241,7 @@ class UavManagerNode:
         self.manager = UavManager(self.view, self.commander, self.nai, self.evaluator, self.recorder,
                                   Clock(rospy.get_time, rate.sleep), lock=self.data.lock)
         self.desk = OrderDesk()
+        self.pending: Order | None = None  # the order idle hands to the action's state
         self.reporter = Reporter(self.uav_id)
         self.written: set[Path] = set()  # CSVs this node wrote: save_csv may rewrite them
         self._critical_seen = ""
