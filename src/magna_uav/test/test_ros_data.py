@@ -103,6 +103,7 @@ def test_markers_of_the_world_node_become_obstacles():
     obstacles = obstacles_from_markers(world_markers([world]))
     assert len(obstacles) == len(expected)
     for got, want in zip(obstacles, expected, strict=True):
+        assert got.name == want.name  # the world's obstacle names ({volPrefix}_{geomPrefix}_obs_{n})
         np.testing.assert_allclose(got.position, want.position, atol=1e-9)
         bound = want.dimensions[0] / 2 if want.shape == "sphere" else np.linalg.norm(want.dimensions) / 2
         assert got.radius == pytest.approx(bound)

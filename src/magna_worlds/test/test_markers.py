@@ -75,6 +75,7 @@ def test_poses_paths_and_obstacles_are_all_shown():
     obstacles = by_ns(markers, "obstacles")
     assert len(obstacles) == len(resolved.obstacles())
     for marker, obstacle in zip(obstacles, resolved.obstacles(), strict=True):
+        assert marker.text == obstacle.name
         np.testing.assert_allclose([marker.pose.position.x, marker.pose.position.y, marker.pose.position.z],
                                    obstacle.position)
         if obstacle.shape == "sphere":

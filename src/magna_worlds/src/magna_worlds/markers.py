@@ -50,7 +50,9 @@ def world_markers(worlds: list[ResolvedWorld]) -> MarkerArray:
                     add(_points(pose_set.positions, Marker.LINE_STRIP, PATH_WIDTH, (*color, 0.8)), "poses")
             for obstacle in placed.obstacles:
                 frame = Frame.from_xyz_quaternion(obstacle.position, obstacle.quaternion)
-                add(_solid(obstacle.shape, obstacle.dimensions, obstacle.polygon, frame, OBSTACLE_COLOR), "obstacles")
+                marker = _solid(obstacle.shape, obstacle.dimensions, obstacle.polygon, frame, OBSTACLE_COLOR)
+                marker.text = obstacle.name  # rviz ignores text on solids; UAV managers name obstacles by it
+                add(marker, "obstacles")
     return out
 
 
