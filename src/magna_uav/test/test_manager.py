@@ -222,3 +222,30 @@ def test_low_battery_at_the_start_does_not_stop_a_landing_but_a_new_low_battery_
                  feedback=lambda step: battery.update(level=0.1 if world.t > 3.0 else 0.8))
     assert result.outcome == "low_battery"
     assert fly(manager, LandRole()).outcome == "succeeded"
+
+
+def test_set_mission_flies_take_off_path_and_landing_on_board():
+    from magna_uav.goals import mission_role
+
+    manager, world, uavs, recorder, config = setup([[0, 0, 0]])
+    role = mission_role('{"path": [[2, 0, 3], [2, 2, 3]], "include_takeoff": true, "include_land": true, '
+                        '"height": 3.0}', config)
+    reached = []
+    result = fly(manager, role, feedback=lambda step: reached.append(uavs[0].position.copy()))
+    assert result.outcome == "succeeded", result.message
+    assert uavs[0].state == LANDED_ARMED
+    assert min(np.linalg.norm(p - [2, 2, 3]) for p in reached) <= config.accepted_target_radius
+
+
+@pytest.mark.parametrize(("text", "reason"), [
+    ("not json", "is not JSON"),
+    ('{"path": [[1, 2]]}', "list of \\[x, y, z\\] points"),
+    ('{"paths": []}', "mission_json.paths is unknown"),
+    ("{}", "nothing to do"),
+])
+def test_set_mission_refuses_bad_missions_with_the_reason(text, reason):
+    from magna_uav.goals import mission_role
+
+    config = configs_from_mission(AGENTS[:1], "test")[0]
+    with pytest.raises(ValueError, match=reason):
+        mission_role(text, config)

@@ -31,7 +31,8 @@ WALL_LIMIT = 120.0  # s of wall time any single goal may take (a guard against h
 SAFETY = 0.3 + 0.3  # sum of the iris safety radii
 ACCEPTED = 0.9  # iris accepted_target_radius
 TYPES = {"take_off": "TakeOff", "land": "Land", "basic_move": "BasicMove", "follow_path": "FollowPath",
-         "follow_agent_ad": "FollowAgentAD", "follow_agent_ap": "FollowAgentAP", "save_csv": "SaveCSV"}
+         "follow_agent_ad": "FollowAgentAD", "follow_agent_ap": "FollowAgentAP", "save_csv": "SaveCSV",
+         "set_mission": "SetMission"}
 
 
 def pose(x, y, z):
@@ -298,6 +299,14 @@ class UavManagerFlights(unittest.TestCase):
         events = {(uav_id, event) for uav_id, _, event in self.reports if event}
         self.assertTrue({(1, "collision"), (2, "collision")} & events, events)
         self.assertIn((1, "GS_critical_event"), events)
+
+    def test_8b_set_mission_flies_an_on_board_mission(self):
+        uav = self.uav1
+        mission = {"path": [[-3.0, -3.0, 3.0], [-5.0, -3.0, 3.0]], "include_land": True}
+        result = uav.do("set_mission", mission_json=json.dumps(mission))
+        self.assertEqual(result.outcome, "succeeded", result.message)
+        self.assertLess(uav.where()[2], 0.3, "landed at the end")
+        self.assertLess(float(np.linalg.norm(uav.where()[:2] - [-5.0, -3.0])), ACCEPTED)
 
     def test_9_die_saves_the_data_and_ends_the_manager(self):
         name = "/magna/uav_2/die"

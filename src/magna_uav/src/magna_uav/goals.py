@@ -1,6 +1,9 @@
 """Action goals from the ground station -> roles, one builder per action server."""
 from __future__ import annotations
 
+import json
+import math
+
 from magna_uav.config import UavConfig
 from magna_uav.roles import (
     BasicMoveRole,
@@ -8,12 +11,14 @@ from magna_uav.roles import (
     FollowAgentAtPositionRole,
     FollowPathRole,
     LandRole,
+    OnBoardMissionRole,
     Role,
     TakeOffRole,
 )
 
-# Action servers that fly a role (save_csv and set_mission are handled apart).
-ROLE_ACTIONS = ("take_off", "land", "basic_move", "follow_path", "follow_agent_ad", "follow_agent_ap")
+# Action servers that fly a role (save_csv is handled apart).
+ROLE_ACTIONS = ("take_off", "land", "basic_move", "follow_path", "follow_agent_ad", "follow_agent_ap", "set_mission")
+MISSION_KEYS = ("path", "include_takeoff", "include_land", "height", "smooth_path_mode", "dynamic")
 
 
 def role_from_goal(action: str, goal, config: UavConfig) -> Role:
@@ -41,4 +46,38 @@ def role_from_goal(action: str, goal, config: UavConfig) -> Role:
         return FollowAgentAtDistanceRole(goal.target_id, goal.distance, goal.duration)
     if action == "follow_agent_ap":
         return FollowAgentAtPositionRole(goal.target_id, (goal.pos.x, goal.pos.y, goal.pos.z), goal.duration)
+    if action == "set_mission":
+        return mission_role(goal.mission_json, config)
     raise ValueError(f"action {action!r} flies no role; known: {', '.join(ROLE_ACTIONS)}")
+
+
+def mission_role(mission_json: str, config: UavConfig) -> OnBoardMissionRole:
+    """An on-board mission (set_mission): take off (optional), fly a path, land (optional).
+
+    mission_json: {"path": [[x, y, z], ...] (map frame), "include_takeoff": false,
+    "include_land": false, "height": 2.0 (take-off, m), "smooth_path_mode": 0,
+    "dynamic": "velocity"}, as the original's set_mission state gives them.
+    """
+    try:
+        data = json.loads(mission_json or "{}")
+    except json.JSONDecodeError as error:
+        raise ValueError(f"set_mission mission_json is not JSON: {error.msg} at column {error.colno}") from None
+    if not isinstance(data, dict):
+        raise ValueError("set_mission mission_json must be an object with a path")
+    unknown = sorted(set(data) - set(MISSION_KEYS))
+    if unknown:
+        raise ValueError(f"set_mission mission_json.{unknown[0]} is unknown; known: {', '.join(MISSION_KEYS)}")
+    path = data.get("path") or []
+    if not isinstance(path, list) or not all(isinstance(p, list) and len(p) == 3 and
+                                             all(isinstance(v, int | float) and math.isfinite(v) for v in p)
+                                             for p in path):
+        raise ValueError("set_mission mission_json.path must be a list of [x, y, z] points in metres")
+    roles = []
+    if data.get("include_takeoff", False):
+        roles.append(TakeOffRole(float(data.get("height", 2.0))))
+    if path:
+        roles.append(FollowPathRole(path, config.accepted_target_radius, int(data.get("smooth_path_mode", 0)),
+                                    str(data.get("dynamic", "velocity"))))
+    if data.get("include_land", False):
+        roles.append(LandRole())
+    return OnBoardMissionRole(roles)

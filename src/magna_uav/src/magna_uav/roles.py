@@ -269,3 +269,30 @@ class BasicMoveRole(Role):
 
 def _wrap(angle: float) -> float:
     return (angle + math.pi) % (2.0 * math.pi) - math.pi
+
+
+class OnBoardMissionRole(Role):
+    """A mission handed to the UAV (set_mission): its roles one after the other.
+
+    The next role starts when one succeeds; any other outcome ends the mission with it.
+    """
+
+    name = "set_mission"
+
+    def __init__(self, roles: list[Role]):
+        super().__init__(0.0)
+        if not roles:
+            raise ValueError("set_mission: the mission has nothing to do")
+        self.roles, self.index = list(roles), 0
+
+    def _step(self, view, now, elapsed):
+        step = self.roles[self.index].step(view, now)
+        done_before = self.index
+        percent = 100.0 * (done_before + step.percent / 100.0) / len(self.roles)
+        if step.outcome == SUCCEEDED and self.index + 1 < len(self.roles):
+            self.index += 1
+            step.outcome, step.action = None, HOVER if step.action == HOVER else step.action
+        step.percent = percent
+        if step.outcome is not None:
+            step.message = f"{self.roles[done_before].name}: {step.message}"
+        return step

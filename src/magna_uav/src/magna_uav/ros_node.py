@@ -44,7 +44,7 @@ the UAL API (magna_sim or a real UAL server), watching every other UAV and obsta
 Action servers (magna_msgs), under /magna/uav_{id}/:
   take_off, land, basic_move, follow_path, follow_agent_ad, follow_agent_ap   fly a role
   save_csv      write the recorder's rows to a CSV (goal.path, or ~data_dir/uav_{id}.csv)
-  set_mission   refused: on-board missions come with the ground station's mission runner
+  set_mission   an on-board mission: optional take-off, a path, optional landing (goal.mission_json)
 Services: /magna/uav_{id}/algorithm_control (AlgorithmControl), /magna/uav_{id}/die (Die)
 Topics:   /magna/uav_{id}/path/raw, /path/smoothed (nav_msgs/Path), /goal (PoseStamped);
           listens to /magna/gs/critical_event (std_msgs/String; empty clears it)
@@ -339,9 +339,6 @@ class UavManagerNode:
             server = self.servers[action]
             if action == "save_csv":
                 outcome, message = self._save_csv(goal.path)
-            elif action == "set_mission":
-                outcome, message = ABORTED, ("set_mission: on-board missions are not supported yet; the ground "
-                                             "station sends the mission's actions one by one")
             else:
                 order = Order(action, goal, server)
                 self.desk.submit(order)
