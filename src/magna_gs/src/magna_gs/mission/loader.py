@@ -1,0 +1,112 @@
+"""Read a mission file: JSON -> migration (legacy schema) -> typed `Mission` -> validation.
+
+    loaded = load_mission("missions/Gym/Two_Paths.json")
+    loaded.mission, loaded.changes, loaded.warnings, loaded.plan
+
+Missions are also found by name, `<mission>/<submission>` as the hyperparameters give
+them (`find_mission("Gym/2UAVs_2paths_Central_Cylinder")`), in each folder of the search
+path: `--search-path` folders first, then `$MAGNA_MISSIONS_PATH`, then the project's
+`missions/`; a folder may also be a ROS-MAGNA tree whose missions sit in `Missions/`.
+Every problem is a `MissionError` line `file: JSON.path: message`.
+"""
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from magna_gs.mission.migrate import migrate
+from magna_gs.mission.model import Mission, MissionError
+from magna_gs.mission.parse import parse_mission
+from magna_gs.mission.plan import Plan
+
+PROJECT_MISSIONS = Path(__file__).resolve().parents[5] / "missions"  # <repo>/missions, beside src/
+CORPUS_SUBFOLDER = "Missions"  # a ROS-MAGNA tree keeps its missions here
+
+
+@dataclass
+class LoadedMission:
+    mission: Mission
+    changes: list[str]  # what the migration from the legacy schema changed (empty for a current file)
+    warnings: list[str] = field(default_factory=list)  # findings that do not stop the mission
+    plan: Plan | None = None  # the expanded states (None when loaded with validate=False)
+
+
+def default_search_path() -> list[Path]:
+    """$MAGNA_MISSIONS_PATH (os.pathsep-separated), then the project's missions/."""
+    extra = [Path(p) for p in os.environ.get("MAGNA_MISSIONS_PATH", "").split(os.pathsep) if p]
+    return [*extra, PROJECT_MISSIONS]
+
+
+def candidate_paths(name: str, search_path: Iterable[Path]) -> list[Path]:
+    """Where a mission `<mission>/<submission>` may be, in the order looked at."""
+    relative = Path(name if name.endswith(".json") else f"{name}.json")
+    out = []
+    for folder in search_path:
+        out += [Path(folder) / relative, Path(folder) / CORPUS_SUBFOLDER / relative]
+    return out
+
+
+def find_mission(name: str, search_path: Iterable[Path] | None = None) -> Path:
+    """The file of mission `name` ("Gym/2UAVs_2paths_Central_Cylinder"); MissionError saying where it looked."""
+    folders = default_search_path() if search_path is None else list(search_path)
+    candidates = candidate_paths(name, folders)
+    for candidate in candidates:
+        if candidate.is_file():
+            return candidate
+    looked = ", ".join(str(c) for c in candidates) or "nowhere (empty search path)"
+    raise MissionError(f"{name}: no such mission; looked at {looked}. Give a file path, or add the folder holding "
+                       "<mission>/<submission>.json with --search-path or $MAGNA_MISSIONS_PATH")
+
+
+def resolve_mission_path(mission: str, search_path: Iterable[Path] | None = None) -> Path:
+    """A file path as it is when the file exists, else a name looked up with `find_mission`."""
+    path = Path(mission)
+    if path.is_file():
+        return path
+    try:
+        return find_mission(mission, search_path)
+    except MissionError as error:
+        if mission.endswith(".json"):
+            raise MissionError(f"{mission}: no such file (nor a mission of that name: "
+                               f"{error.problems[0].split(': ', 1)[1]})") from None
+        raise
+
+
+def read_mission_json(path: Path, source: str):
+    try:
+        text = Path(path).read_text()
+    except FileNotFoundError:
+        raise MissionError(f"{source}: no such file; check the path") from None
+    except OSError as err:
+        raise MissionError(f"{source}: cannot read it: {err.strerror or err}") from None
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as err:
+        raise MissionError(f"{source}: not valid JSON: {err.msg} at line {err.lineno} column {err.colno}") from None
+
+
+def mission_from_data(data, source: str, validate: bool = True, airframe_dir: Path | None = None) -> LoadedMission:
+    """Migrate, parse and (by default) validate already-read JSON; MissionError lists every problem found."""
+    migration = migrate(data)
+    parsed = parse_mission(migration, source, airframe_dir)
+    loaded = LoadedMission(parsed.mission, list(migration.changes), list(parsed.warnings))
+    problems = list(parsed.problems)
+    if validate and parsed.complete:  # with a node missing, its siblings' transitions would fail for nothing
+        from magna_gs.mission.validate import validate_mission
+
+        report = validate_mission(parsed.mission)
+        problems += report.problems
+        loaded.warnings += report.warnings
+        loaded.plan = report.plan
+    if problems:
+        raise MissionError(problems)
+    return loaded
+
+
+def load_mission(path, validate: bool = True, airframe_dir: Path | None = None) -> LoadedMission:
+    """Load a mission file (either schema); MissionError lists every problem, each with file and JSON path."""
+    source = str(path)
+    return mission_from_data(read_mission_json(Path(path), source), source, validate, airframe_dir)

@@ -1,0 +1,148 @@
+"""Legacy mission JSON -> the current schema, in one step that says what it changed.
+
+Two generations of ROS-MAGNA missions exist (both in real files, sometimes mixed in one):
+
+- `UAVs_Config` (entries with `uav_manager_on_gs`) -> `Agents_Config` (`agent_manager_on_gs`);
+- state_type `new_world` (no parameters: world 1 from the hyperparameters) -> `world_config`
+  `{action: spawn, id: 1, world_part_def: from_hyperparameters}`;
+- state_type `spawn_uavs` (no parameters: agent i above cell [i, 0, 0] of the take-off matrix)
+  -> `spawn_agents` `{initial_poses: [[Ground_Station, Agents_take_off, matrix, [i, 0, 0]], ...]}`;
+- state_type `follow_uav_ad`, `follow_uav_ap` -> `follow_agent_ad`, `follow_agent_ap`;
+- `ids_var: uav` -> `ids_var: agent`; parameters `time` -> `duration`;
+- a `wait` with a duration and no `exit_type` -> `exit_type: time`;
+- outcome-map conditions `succeeded` / `aborted` on a CBState child (save_csv was an action
+  state once, and maps kept its vocabulary) -> `completed` / `failed`.
+
+`migrate(data)` never changes its argument and never fails: what it does not recognise
+is left for the parser to report. Migration renames and fills in, it never adds or
+removes states, so JSON paths stay those of the file (`original_path` maps the few
+renamed keys back).
+"""
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass, field
+from typing import Any
+
+LEGACY_AGENTS_KEY = "UAVs_Config"
+AGENTS_KEY = "Agents_Config"
+LEGACY_GS_KEY = "uav_manager_on_gs"
+GS_KEY = "agent_manager_on_gs"
+STATE_TYPE_RENAMES = {"new_world": "world_config", "spawn_uavs": "spawn_agents",
+                      "follow_uav_ad": "follow_agent_ad", "follow_uav_ap": "follow_agent_ap"}
+IDS_VAR_RENAMES = {"uav": "agent"}
+# The legacy spawn put agent i (from 0) above cell [i, 0, 0] of the ground station's take-off matrix; the geometry
+# was called UAVs_take_off then and is Agents_take_off in the current worlds.
+LEGACY_SPAWN_VOLUME, LEGACY_SPAWN_GEOMETRY = "Ground_Station", "Agents_take_off"
+# new_world made world 1 from the world and subworld of the hyperparameters.
+LEGACY_NEW_WORLD = {"action": "spawn", "id": 1, "world_part_def": "from_hyperparameters"}
+CB_OUTCOME_FOR_ACTION_OUTCOME = {"succeeded": "completed", "aborted": "failed"}
+
+
+@dataclass
+class Migration:
+    data: Any  # the migrated JSON (a deep copy; the input is untouched)
+    original: Any = None  # the input, as read
+    changes: list[str] = field(default_factory=list)  # human-readable, each starting with the JSON path
+    renamed: dict[str, str] = field(default_factory=dict)  # JSON path now -> JSON path in the file
+
+    @property
+    def changed(self) -> bool:
+        return bool(self.changes)
+
+    def original_path(self, path: str) -> str:
+        """The file's JSON path for a path of the migrated data (renamed keys mapped back)."""
+        best = ""
+        for new in self.renamed:
+            if (path == new or path.startswith(new + ".") or path.startswith(new + "[")) and len(new) > len(best):
+                best = new
+        return self.renamed[best] + path[len(best):] if best else path
+
+
+def migrate(data: Any) -> Migration:
+    """Bring a mission to the current schema; `changes` says what was done, in file order."""
+    result = Migration(copy.deepcopy(data), data)
+    mission = result.data
+    if not isinstance(mission, dict):
+        return result
+    agents_key = AGENTS_KEY
+    if LEGACY_AGENTS_KEY in mission and AGENTS_KEY not in mission:
+        result.data = mission = {(AGENTS_KEY if k == LEGACY_AGENTS_KEY else k): v for k, v in mission.items()}
+        result.changes.append(f"{LEGACY_AGENTS_KEY} -> {AGENTS_KEY}")
+        result.renamed[AGENTS_KEY] = LEGACY_AGENTS_KEY
+        agents_key = LEGACY_AGENTS_KEY
+    agents = mission.get(AGENTS_KEY)
+    if isinstance(agents, list):
+        for index, entry in enumerate(agents):
+            if isinstance(entry, dict) and LEGACY_GS_KEY in entry and GS_KEY not in entry:
+                agents[index] = {(GS_KEY if k == LEGACY_GS_KEY else k): v for k, v in entry.items()}
+                result.changes.append(f"{agents_key}[{index}].{LEGACY_GS_KEY} -> {GS_KEY}")
+                result.renamed[f"{AGENTS_KEY}[{index}].{GS_KEY}"] = f"{agents_key}[{index}].{LEGACY_GS_KEY}"
+    n_agents = len(agents) if isinstance(agents, list) else 0
+    nodes = mission.get("State_Machine")
+    if isinstance(nodes, list):
+        for index, node in enumerate(nodes):
+            _node(node, f"State_Machine[{index}]", n_agents, result)
+    return result
+
+
+def _node(node: Any, path: str, n_agents: int, result: Migration) -> None:
+    if not isinstance(node, dict):
+        return
+    state_type = node.get("state_type")
+    if isinstance(state_type, str) and state_type in STATE_TYPE_RENAMES:
+        new_type = STATE_TYPE_RENAMES[state_type]
+        node["state_type"] = new_type
+        note = ""
+        if state_type == "new_world" and "parameters" not in node:
+            node["parameters"] = copy.deepcopy(LEGACY_NEW_WORLD)
+            note = (" with parameters {action: spawn, id: 1, world_part_def: from_hyperparameters} "
+                    "(world 1 from the hyperparameters' world, as new_world made it)")
+        elif state_type == "spawn_uavs" and "parameters" not in node:
+            node["parameters"] = {"initial_poses": [[LEGACY_SPAWN_VOLUME, LEGACY_SPAWN_GEOMETRY, "matrix", [i, 0, 0]]
+                                                    for i in range(n_agents)]}
+            note = (f" with parameters.initial_poses [{LEGACY_SPAWN_VOLUME}, {LEGACY_SPAWN_GEOMETRY}, matrix, "
+                    f"[i, 0, 0]] for i = 0..{n_agents - 1} (where the legacy spawn put each agent)")
+        result.changes.append(f"{path}.state_type: {state_type} -> {new_type}{note}")
+    ids_var = node.get("ids_var")
+    if isinstance(ids_var, str) and ids_var in IDS_VAR_RENAMES:
+        node["ids_var"] = IDS_VAR_RENAMES[ids_var]
+        result.changes.append(f"{path}.ids_var: {ids_var} -> {node['ids_var']}")
+    parameters = node.get("parameters")
+    if isinstance(parameters, dict):
+        if "time" in parameters and "duration" not in parameters:
+            node["parameters"] = parameters = {("duration" if k == "time" else k): v for k, v in parameters.items()}
+            result.changes.append(f"{path}.parameters.time -> duration")
+            result.renamed[f"{path}.parameters.duration"] = f"{path}.parameters.time"
+        if node.get("state_type") == "wait" and "exit_type" not in parameters and "duration" in parameters:
+            parameters["exit_type"] = "time"
+            result.changes.append(f"{path}.parameters.exit_type: added 'time' (a legacy wait of a duration)")
+    children = node.get("occurrencies")
+    if isinstance(children, list):
+        for index, child in enumerate(children):
+            _node(child, f"{path}.occurrencies[{index}]", n_agents, result)
+        if node.get("type") == "Concurrence":
+            _callback_outcomes_in_map(node, children, path, result)
+
+
+def _callback_outcomes_in_map(node: dict, children: list, path: str, result: Migration) -> None:
+    """Outcome-map conditions written in the action vocabulary on CBState children (save_csv used to be an action)."""
+    outcome_map = node.get("occurrencies_outcome_map")
+    if not isinstance(outcome_map, dict):
+        return
+    for outcome, conditions in outcome_map.items():
+        if not isinstance(conditions, dict):
+            continue
+        for key, wanted in list(conditions.items()):
+            if wanted not in CB_OUTCOME_FOR_ACTION_OUTCOME:
+                continue
+            if key == "all":
+                named = [c for c in children if isinstance(c, dict)]
+            else:
+                named = [c for c in children if isinstance(c, dict) and c.get("name") == key
+                         and c.get("type") == "CBState"]
+            if named and all(c.get("type") == "CBState" for c in named):
+                conditions[key] = CB_OUTCOME_FOR_ACTION_OUTCOME[wanted]
+                what = ", ".join(sorted({str(c.get("state_type")) for c in named}))
+                result.changes.append(f"{path}.occurrencies_outcome_map.{outcome}.{key}: {wanted} -> {conditions[key]} "
+                                      f"({what} is a CBState, which ends completed or failed)")
