@@ -165,7 +165,8 @@ class WorldNodeTest(unittest.TestCase):
             np.testing.assert_allclose(main["obstacles"][0]["position"], first.position, atol=1e-6)
             poses = sum(len(s["frames"]) for g in main["geometries"] for s in g["pose_sets"])
             self.assertEqual(poses, self.expected.pose_count())
-            self.assertNotIn("extra", record["parts"])  # deleted in test 5
+            self.assertFalse(main["deleted"])
+            self.assertTrue(record["parts"]["extra"]["deleted"], "deleted in test 5, still in the record")
         finally:
             if path.exists() and str(path).startswith("/tmp/"):
                 os.unlink(path)

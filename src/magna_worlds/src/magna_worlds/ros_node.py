@@ -76,6 +76,7 @@ class WorldNode:
         self.spawn_obstacles = bool(rospy.get_param("~spawn_obstacles", True))
         self.sim_wait = float(rospy.get_param("~sim_wait", 2.0))
         self.record_path = rospy.get_param("~record", "")
+        self.flown: dict[str, dict] = {}  # every part recorded this run, by id
         self.lock = threading.Lock()
         self.spawned: dict[str, list[str]] = {}  # part id -> obstacle models in the simulator
         self.tf_pub = rospy.Publisher("/tf_static", TFMessage, queue_size=1, latch=True)
@@ -227,8 +228,16 @@ class WorldNode:
         return removed
 
     def _write_record(self) -> None:
-        if self.record_path:
-            write_json_atomically(self.record_path, self.registry.record())
+        """The record keeps every part the run had: a deleted part stays, marked, since the record
+        says what the simulation flew in (missions delete their world at the end)."""
+        if not self.record_path:
+            return
+        current = self.registry.record()
+        for part_id, part in current["parts"].items():
+            self.flown[part_id] = dict(part, deleted=False)
+        for part_id in self.flown.keys() - current["parts"].keys():
+            self.flown[part_id]["deleted"] = True
+        write_json_atomically(self.record_path, {"seed": current["seed"], "parts": self.flown})
 
 
 def main(argv=None) -> int:
