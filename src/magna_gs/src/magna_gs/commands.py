@@ -1,0 +1,234 @@
+"""Operator commands (keyboard, voice, GUI) -> what the ground station does, checked first.
+
+`plan_command` turns one magna_msgs/GroundStationCommand (intent, action, agent,
+parameters) into a `CommandPlan`: action goals for UAV managers, an algorithm change,
+a mission pause or resume, or answers to a question. Every request is validated against
+what the ground station knows (the UAVs of the mission, their last pose, the world's
+boundaries); a bad one raises `CommandRefused` with the reason, and nothing is sent.
+Pure: the node executes the plan.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+INTENTS = ("basic_action", "mission", "parameters", "algorithms")
+DIRECTIONS = {"up", "down", "left", "right", "forward", "backward", "x", "y", "z"}
+ALGORITHMS = ("simple", "orca3", "orca3d", "neural_network")
+QUERIES = ("battery", "state", "position")
+DEFAULT_FOLLOW_DISTANCE = 2.0  # m
+
+
+class CommandRefused(ValueError):
+    """A command the ground station will not carry out; the message says why."""
+
+
+@dataclass(frozen=True)
+class UavStatus:
+    """What the ground station knows of one UAV."""
+
+    id: int
+    position: np.ndarray | None = None  # map frame, None before the first pose
+    yaw: float = 0.0
+    state: str = ""  # the manager's last reported state
+    ual_state: int = 0
+    battery: float = math.nan  # 0..1
+
+
+@dataclass(frozen=True)
+class Param:
+    """A command parameter (magna_msgs/NamedValue): a number, a text or both."""
+
+    name: str
+    number: float = 0.0
+    text: str = ""
+    unit: str = ""
+
+
+@dataclass
+class ActionOrder:
+    uav_id: int
+    action: str  # take_off, land, basic_move, follow_agent_ad
+    fields: dict  # goal fields
+
+
+@dataclass
+class CommandPlan:
+    orders: list[ActionOrder] = field(default_factory=list)
+    algorithm: tuple[str, list[int]] | None = None  # (name, uav ids)
+    mission: str | None = None  # "standby" or "resume"
+    answers: list[Param] = field(default_factory=list)
+    message: str = ""
+
+
+def plan_command(intent: str, action: str, agent: str, params: Sequence[Param], uavs: Mapping[int, UavStatus],
+                 boundaries: np.ndarray | None = None) -> CommandPlan:
+    """The plan for one command, or CommandRefused naming what is wrong."""
+    intent, action = intent.strip(), action.strip()
+    by_name = {p.name: p for p in params}
+    if intent == "mission":
+        if action not in ("standby", "resume"):
+            raise CommandRefused(f"mission action {action!r} is unknown: give standby or resume")
+        return CommandPlan(mission=action, message=f"mission {action}")
+    if intent not in INTENTS:
+        raise CommandRefused(f"intent {intent!r} is unknown: give one of {', '.join(INTENTS)}")
+    ids = _targets(agent, uavs)
+    if intent == "parameters":
+        if action != "get":
+            raise CommandRefused(f"parameters action {action!r} is unknown: give get")
+        return _answers(ids, by_name, uavs)
+    if intent == "algorithms":
+        if action != "set":
+            raise CommandRefused(f"algorithms action {action!r} is unknown: give set")
+        name = _text(by_name, "algorithm", ALGORITHMS)
+        return CommandPlan(algorithm=(name, ids), message=f"algorithm {name} for {_who(ids)}")
+    orders = [_basic_action(action, uav_id, by_name, uavs, boundaries) for uav_id in ids]
+    return CommandPlan(orders=orders, message=f"{action} for {_who(ids)}")
+
+
+def _targets(agent: str, uavs: Mapping[int, UavStatus]) -> list[int]:
+    agent = agent.strip().lower()
+    if agent in ("all", "*"):
+        if not uavs:
+            raise CommandRefused("agent 'all': the mission has no UAVs yet")
+        return sorted(uavs)
+    try:
+        uav_id = int(agent)
+    except ValueError:
+        raise CommandRefused(f"agent {agent!r} is not a UAV id or 'all'") from None
+    if uav_id not in uavs:
+        raise CommandRefused(f"UAV {uav_id} is not in this mission (UAVs: {', '.join(map(str, sorted(uavs)))})")
+    return [uav_id]
+
+
+def _who(ids: list[int]) -> str:
+    return "UAV " + ", ".join(map(str, ids)) if len(ids) < 2 else "UAVs " + ", ".join(map(str, ids))
+
+
+def _number(by_name: Mapping[str, Param], name: str, unit: str, default: float | None = None) -> float:
+    param = by_name.get(name)
+    if param is None:
+        if default is None:
+            raise CommandRefused(f"parameter {name!r} is missing: give it in {unit}")
+        return default
+    if param.unit and param.unit != unit:
+        raise CommandRefused(f"parameter {name!r} is in {param.unit!r}: give it in {unit}")
+    if not math.isfinite(param.number):
+        raise CommandRefused(f"parameter {name!r} is {param.number}: give a finite number of {unit}")
+    return float(param.number)
+
+
+def _text(by_name: Mapping[str, Param], name: str, allowed: Sequence[str]) -> str:
+    param = by_name.get(name)
+    value = (param.text if param else "").strip().lower()
+    if value not in allowed:
+        raise CommandRefused(f"parameter {name!r} is {value!r}: give one of {', '.join(allowed)}")
+    return value
+
+
+def _inside(boundaries: np.ndarray | None, point: np.ndarray) -> bool:
+    return boundaries is None or bool(np.all(point >= boundaries[:, 0]) and np.all(point <= boundaries[:, 1]))
+
+
+def _where(uav: UavStatus) -> np.ndarray:
+    if uav.position is None:
+        raise CommandRefused(f"UAV {uav.id} has not reported a pose yet")
+    return np.asarray(uav.position, dtype=float)
+
+
+def _basic_action(action: str, uav_id: int, by_name, uavs, boundaries) -> ActionOrder:
+    uav = uavs[uav_id]
+    if action == "take_off":
+        height = _number(by_name, "height", "m", 2.0)
+        if height <= 0:
+            raise CommandRefused(f"take-off height {height:g} m: give a positive height")
+        top = _where(uav) + [0.0, 0.0, height]
+        if not _inside(boundaries, top):
+            raise CommandRefused(f"UAV {uav_id} taking off {height:g} m would reach z = {top[2]:.1f} m, above the "
+                                 f"world's ceiling of {boundaries[2, 1]:g} m")
+        return ActionOrder(uav_id, "take_off", {"height": height})
+    if action == "land":
+        return ActionOrder(uav_id, "land", {})
+    if action == "move":
+        direction = _text(by_name, "direction", sorted(DIRECTIONS))
+        distance = _number(by_name, "distance", "m")
+        target = _where(uav) + _offset(direction, distance, uav.yaw)
+        if not _inside(boundaries, target):
+            raise CommandRefused(f"UAV {uav_id} moving {distance:g} m {direction} would leave the world: "
+                                 f"({', '.join(f'{v:.1f}' for v in target)}) is outside its boundaries")
+        return ActionOrder(uav_id, "basic_move", _move_goal(direction, distance))
+    if action == "turn":
+        angle = _number(by_name, "angle", "deg")
+        side = by_name["direction"].text.strip().lower() if "direction" in by_name else "left"
+        if side not in ("left", "right"):
+            raise CommandRefused(f"turn direction {side!r}: give left or right")
+        if angle < 0:
+            angle, side = -angle, "right" if side == "left" else "left"
+        return ActionOrder(uav_id, "basic_move", {"move_type": "rotation", "dynamic": "position", "direction": side,
+                                                  "value": angle, "duration": 0.0})
+    if action == "follow":
+        target_param = by_name.get("target")
+        if target_param is None:
+            raise CommandRefused("parameter 'target' is missing: give the UAV to follow")
+        target = int(target_param.number) if not target_param.text else _parse_id(target_param.text)
+        if target == uav_id:
+            raise CommandRefused(f"UAV {uav_id} cannot follow itself")
+        if target not in uavs:
+            raise CommandRefused(f"UAV {target} to follow is not in this mission")
+        distance = _number(by_name, "distance", "m", DEFAULT_FOLLOW_DISTANCE)
+        if distance <= 0:
+            raise CommandRefused(f"follow distance {distance:g} m: give a positive distance")
+        return ActionOrder(uav_id, "follow_agent_ad", {"target_id": target, "distance": distance, "duration": 0.0})
+    raise CommandRefused(f"basic action {action!r} is unknown: give take_off, land, move, turn or follow")
+
+
+def _parse_id(text: str) -> int:
+    try:
+        return int(text.strip().removeprefix("uav").strip("_ "))
+    except ValueError:
+        raise CommandRefused(f"target {text!r} is not a UAV id") from None
+
+
+def _offset(direction: str, distance: float, yaw: float) -> np.ndarray:
+    heading = np.array([math.cos(yaw), math.sin(yaw), 0.0])
+    left = np.array([-math.sin(yaw), math.cos(yaw), 0.0])
+    unit = {"up": np.array([0.0, 0.0, 1.0]), "down": np.array([0.0, 0.0, -1.0]), "forward": heading,
+            "backward": -heading, "left": left, "right": -left, "x": np.array([1.0, 0.0, 0.0]),
+            "y": np.array([0.0, 1.0, 0.0]), "z": np.array([0.0, 0.0, 1.0])}[direction]
+    return unit * distance
+
+
+def _move_goal(direction: str, distance: float) -> dict:
+    """A basic_move goal; axis moves become the body direction they match at zero yaw."""
+    if direction in ("x", "y", "z"):
+        direction = {"x": "forward", "y": "left", "z": "up"}[direction]
+    if distance < 0:
+        distance = -distance
+        direction = {"up": "down", "down": "up", "left": "right", "right": "left", "forward": "backward",
+                     "backward": "forward"}[direction]
+    return {"move_type": "translation", "dynamic": "position", "direction": direction, "value": distance,
+            "duration": 0.0}
+
+
+def _answers(ids: list[int], by_name: Mapping[str, Param], uavs: Mapping[int, UavStatus]) -> CommandPlan:
+    asked = [name for name in by_name if name in QUERIES] or ["state"]
+    unknown = [name for name in by_name if name not in QUERIES]
+    if unknown:
+        raise CommandRefused(f"cannot tell {unknown[0]!r}: ask for one of {', '.join(QUERIES)}")
+    answers = []
+    for uav_id in ids:
+        uav = uavs[uav_id]
+        for name in asked:
+            if name == "battery":
+                answers.append(Param(f"uav_{uav_id}.battery", 100.0 * uav.battery, "", "%"))
+            elif name == "state":
+                answers.append(Param(f"uav_{uav_id}.state", 0.0, uav.state or "unknown", ""))
+            else:
+                position = _where(uav)
+                for axis, value in zip("xyz", position, strict=True):
+                    answers.append(Param(f"uav_{uav_id}.position.{axis}", float(value), "", "m"))
+    return CommandPlan(answers=answers, message=", ".join(f"{a.name} {a.text or f'{a.number:.1f}{a.unit}'}"
+                                                          for a in answers))

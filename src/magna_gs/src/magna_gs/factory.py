@@ -1,0 +1,226 @@
+"""The ground station's states: what each mission state does through ROS.
+
+`RosStateFactory` is the factory `magna_gs.mission.build.build_machine` asks for every
+leaf of the mission: action states send one goal to a UAV manager's action server
+(`/magna/uav_{id}/{action}`), callback states configure the world, wait, spawn the UAVs,
+switch algorithms and save data. The ground station node owns the shared services
+(`GroundStationServices`): the world node, the simulator, the UAV managers, the pause.
+"""
+from __future__ import annotations
+
+import json
+import threading
+import time
+from collections.abc import Callable
+
+import rospy
+from geometry_msgs.msg import Vector3
+from magna_msgs import msg as actions
+
+from magna_sm import State
+from magna_sm.simple_action import SimpleActionClient
+from magna_uav.commanders import pose_stamped
+
+ACTION_OUTCOMES = ("succeeded", "collision", "low_battery", "GS_critical_event", "utm_new_flightplan", "preempted",
+                   "aborted")
+CALLBACK_OUTCOMES = ("completed", "failed")
+ACTION_TYPES = {"take_off": "TakeOff", "land": "Land", "basic_move": "BasicMove", "follow_path": "FollowPath",
+                "follow_agent_ad": "FollowAgentAD", "follow_agent_ap": "FollowAgentAP", "save_csv": "SaveCSV",
+                "set_mission": "SetMission"}
+POLL = 0.05  # s of wall time between checks while a state waits
+
+
+def _param(parameters, name: str, default=None):
+    """A mission parameter by name, from the loader's typed parameters or a plain mapping."""
+    if isinstance(parameters, dict):
+        return parameters.get(name, default)
+    return getattr(parameters, name, default)
+
+
+class MissionActionState(State):
+    """One goal to one UAV manager; its result's outcome is the state's outcome.
+
+    A mission pause (`services.paused`) cancels the goal and sends it again on resume, so
+    the pause costs the UAV its progress within that action, not the mission's flow.
+    """
+
+    def __init__(self, services, uav_id: int, action: str, make_goal: Callable[[], object], where: str):
+        super().__init__(ACTION_OUTCOMES)
+        self.services, self.uav_id, self.action, self.make_goal, self.where = services, uav_id, action, make_goal, where
+
+    def execute(self, ud) -> str:
+        client = self.services.action_client(self.uav_id, self.action)
+        while True:
+            if not self.services.wait_while_paused(self.preempt_requested):
+                return "preempted"
+            try:
+                goal = self.make_goal()
+            except ValueError as error:
+                rospy.logerr(f"{self.where}: {error}")
+                return "aborted"
+            client.send_goal(goal)
+            while not client.wait_for_result(rospy.Duration(POLL)):
+                if rospy.is_shutdown() or self.preempt_requested():
+                    client.cancel_goal()
+                    client.wait_for_result(rospy.Duration(2.0))
+                    return "preempted"
+                if self.services.paused.is_set():
+                    client.cancel_goal()
+                    client.wait_for_result(rospy.Duration(2.0))
+                    break  # sent again after the resume
+            else:
+                result = client.get_result()
+                outcome = getattr(result, "outcome", "") or "aborted"
+                if outcome not in ACTION_OUTCOMES:
+                    rospy.logwarn(f"{self.where}: UAV {self.uav_id} answered {outcome!r}; taken as aborted")
+                    outcome = "aborted"
+                if outcome != "succeeded":
+                    rospy.loginfo(f"{self.where}: UAV {self.uav_id} {self.action} {outcome}: "
+                                  f"{getattr(result, 'message', '')}")
+                return outcome
+
+
+class CallbackState(State):
+    """A mission callback (world_config, wait, spawn_agents, algorithm_control, save_csv)."""
+
+    def __init__(self, run: Callable[[CallbackState], bool], where: str):
+        super().__init__(CALLBACK_OUTCOMES)
+        self.run, self.where = run, where
+
+    def execute(self, ud) -> str:
+        try:
+            return "completed" if self.run(self) else "failed"
+        except Exception as error:  # a callback must give an outcome; the mission decides what failure means
+            rospy.logerr(f"{self.where}: {error}")
+            return "failed"
+
+
+class RosStateFactory:
+    """Builds each mission leaf as a state that acts through the ground station's services."""
+
+    def __init__(self, services):
+        self.services = services
+
+    # --- action states -------------------------------------------------------------------
+    def action_state(self, uav_id: int, action: str, parameters, json_path: str) -> State:
+        builders = {"take_off": self._take_off, "land": self._land, "basic_move": self._basic_move,
+                    "follow_path": self._follow_path, "follow_agent_ad": self._follow_ad,
+                    "follow_agent_ap": self._follow_ap, "save_csv": self._save_csv_goal,
+                    "set_mission": self._set_mission}
+        if action not in builders:
+            raise ValueError(f"{json_path}: action {action!r} is unknown to the ground station")
+        build = builders[action]
+        return MissionActionState(self.services, uav_id, action, lambda: build(uav_id, parameters), json_path)
+
+    @staticmethod
+    def _take_off(uav_id, p):
+        return actions.TakeOffGoal(height=float(_param(p, "height", 2.0)))
+
+    @staticmethod
+    def _land(uav_id, p):
+        return actions.LandGoal()
+
+    @staticmethod
+    def _basic_move(uav_id, p):
+        return actions.BasicMoveGoal(move_type=_param(p, "move_type", "translation"),
+                                     dynamic=_param(p, "dynamic", "position") or "position",
+                                     direction=_param(p, "direction", "up"), value=float(_param(p, "value", 0.0)),
+                                     duration=float(_param(p, "duration", 0.0) or 0.0))
+
+    def _follow_path(self, uav_id, p):
+        if _param(p, "from_utm", False):
+            raise ValueError("follow_path from a UTM flight plan: no UTM flight-plan source in this ground station")
+        waypoints = self._resolve_path(p)
+        if not waypoints:
+            raise ValueError("follow_path: the path resolved to no waypoints")
+        return actions.FollowPathGoal(path=[pose_stamped(position) for position, _ in waypoints],
+                                      smooth_path_mode=int(_param(p, "smooth_path_mode", 0) or 0),
+                                      dynamic=_param(p, "dynamic", "velocity") or "velocity",
+                                      duration=float(_param(p, "duration", 0.0) or 0.0))
+
+    @staticmethod
+    def _follow_ad(uav_id, p):
+        return actions.FollowAgentADGoal(target_id=int(_param(p, "target_ID", _param(p, "target_id", 0))),
+                                         distance=float(_param(p, "distance", 2.0)),
+                                         duration=float(_param(p, "duration", 0.0) or 0.0))
+
+    @staticmethod
+    def _follow_ap(uav_id, p):
+        offset = [float(v) for v in _param(p, "pos", (0.0, 0.0, 0.0))]
+        return actions.FollowAgentAPGoal(target_id=int(_param(p, "target_ID", _param(p, "target_id", 0))),
+                                         pos=Vector3(*offset), duration=float(_param(p, "duration", 0.0) or 0.0))
+
+    def _save_csv_goal(self, uav_id, p):
+        return actions.SaveCSVGoal(path=str(self.services.csv_path(uav_id)))
+
+    def _resolve_path(self, p) -> list:
+        waypoints = []
+        for definition in _param(p, "path", ()) or ():
+            waypoints.extend(self.services.resolve_poses(definition.as_list()[:4]))
+        return waypoints
+
+    def _set_mission(self, uav_id, p):
+        """The path resolved here, the rest as the UAV manager's set_mission takes it."""
+        path = [[float(v) for v in position] for position, _ in self._resolve_path(p)]
+        mission = {"path": path, "include_takeoff": bool(_param(p, "include_takeoff", False)),
+                   "include_land": bool(_param(p, "include_land", False))}
+        return actions.SetMissionGoal(mission_json=json.dumps(mission))
+
+    # --- callback states -----------------------------------------------------------------
+    def callback_state(self, state_type: str, ids: list[int], parameters, json_path: str) -> State:
+        s = self.services
+        if state_type == "world_config":
+            return CallbackState(lambda state: s.world_config(parameters.action, parameters.id,
+                                                              parameters.world_part_def), json_path)
+        if state_type == "wait":
+            return CallbackState(lambda state: s.wait(_param(parameters, "exit_type", "time"),
+                                                      float(_param(parameters, "duration", 0.0) or 0.0), state),
+                                 json_path)
+        if state_type == "spawn_agents":
+            return CallbackState(lambda state: s.spawn_agents(list(_param(parameters, "initial_poses", []))),
+                                 json_path)
+        if state_type == "algorithm_control":
+            return CallbackState(lambda state: s.algorithm_control(ids, parameters.name, parameters.action,
+                                                                   list(parameters.params), list(parameters.values),
+                                                                   parameters.text_value), json_path)
+        if state_type == "save_csv":
+            return CallbackState(lambda state: s.save_csv(ids), json_path)
+        raise ValueError(f"{json_path}: callback state {state_type!r} is unknown to the ground station")
+
+
+def wait_sim_seconds(seconds: float, stop: Callable[[], bool]) -> bool:
+    """Sleep `seconds` of ROS time (simulated under /use_sim_time); False when `stop` ended it early."""
+    deadline = rospy.get_time() + seconds
+    while rospy.get_time() < deadline:
+        if stop() or rospy.is_shutdown():
+            return False
+        time.sleep(min(POLL, max(0.0, deadline - rospy.get_time())) or POLL / 5)
+    return True
+
+
+class ActionClients:
+    """One SimpleActionClient per (UAV, action), made on first use and kept."""
+
+    def __init__(self, wait: float = 60.0):
+        self.wait = wait
+        self._clients: dict[tuple[int, str], SimpleActionClient] = {}
+        self._lock = threading.Lock()
+
+    def get(self, uav_id: int, action: str) -> SimpleActionClient:
+        with self._lock:
+            key = (uav_id, action)
+            if key not in self._clients:
+                spec = getattr(actions, ACTION_TYPES[action] + "Action")
+                client = SimpleActionClient(f"/magna/uav_{uav_id}/{action}", spec)
+                if not client.wait_for_server(rospy.Duration(self.wait)):
+                    raise RuntimeError(f"UAV {uav_id}: no action server /magna/uav_{uav_id}/{action} within "
+                                       f"{self.wait:g} s; did its manager start?")
+                self._clients[key] = client
+            return self._clients[key]
+
+    def stop(self) -> None:
+        with self._lock:
+            for client in self._clients.values():
+                client.stop()
+            self._clients.clear()
+

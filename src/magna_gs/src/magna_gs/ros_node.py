@@ -1,0 +1,460 @@
+"""The ground station node: runs one mission from its JSON file, start to finish.
+
+It loads and checks the mission, builds its state machine (magna_gs.mission) with the
+ROS states of magna_gs.factory, and runs it: the world is configured through the world
+node, UAVs are spawned in magna_sim at their initial poses with one UAV manager each,
+goals go to the managers' action servers. Operators (keyboard, voice) command the running
+mission through /magna/gs/command. At the end comes the finishing sequence: data saved,
+managers stopped, models and obstacles deleted, the bag closed, the Master told.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import signal
+import subprocess
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import rospy
+from geometry_msgs.msg import PoseStamped
+from magna_msgs import msg as actions
+from magna_msgs.msg import NamedValue
+from magna_msgs.srv import (
+    AddWorldPart,
+    AlgorithmControl,
+    DeleteModel,
+    DeleteWorldPart,
+    Die,
+    GetFreeSpacePoseSet,
+    GroundStationCommand,
+    GroundStationCommandResponse,
+    SimulationTermination,
+    SpawnModel,
+    StateActualization,
+    StateActualizationResponse,
+)
+from sensor_msgs.msg import BatteryState
+from std_msgs.msg import ColorRGBA, String
+from std_srvs.srv import Trigger, TriggerResponse
+from uav_abstraction_layer.msg import State as UalState
+
+from magna_gs.commands import CommandPlan, CommandRefused, Param, UavStatus, plan_command
+from magna_gs.factory import ActionClients, RosStateFactory, wait_sim_seconds
+from magna_gs.mission.build import build_machine
+from magna_gs.mission.loader import MissionError, load_mission
+from magna_sm.introspection import IntrospectionServer
+from magna_uav.files import write_atomically
+
+HELP = """\
+The ground station: runs one mission (ROS-MAGNA mission JSON, current or legacy schema).
+
+Needs magna_sim, the world node (magna_worlds) and, for ORCA-3D, orca3d_server running;
+`roslaunch magna_gs simulation.launch mission_file:=... world:=... subworld:=...` starts
+them all. UAV managers are started by the mission's spawn_agents state.
+
+Services: /magna/gs/state_actualization (StateActualization, from the UAV managers)
+          /magna/gs/command (GroundStationCommand: take_off, land, move, turn, follow, get,
+                             set algorithm, mission standby/resume; every request checked)
+          /magna/gs/stop (std_srvs/Trigger: end the mission now, then finish as usual)
+          /magna/gs/continue (std_srvs/Trigger: the operator's button for `wait` states)
+Topics:   /magna/gs/critical_event (std_msgs/String) to every UAV manager
+Machine:  /magna/sm/mission/structure|status (magna_sm introspection)
+At the end: /magna/master/simulation_termination (SimulationTermination) when a Master serves it.
+
+Private parameters (defaults):
+  ~mission_file (required)   the mission JSON
+  ~data_dir ("")             where the simulation's files go (CSVs, mission.json, bag); "" = no files
+  ~save_data (true)          CSVs of the UAV managers at the end
+  ~bag (true)                record simulation.bag (tf, markers, UAV poses, the machine's status)
+  ~control_rate (10.0)       control rate of the UAV managers it starts
+  ~manager_output (log)      where the managers' output goes: log or screen
+"""
+
+SUCCESS_OUTCOMES = ("completed", "succeeded", "success", "mission_completed", "finished")
+BAG_TOPICS = (r"/tf|/tf_static|/magna/world/markers|/uav_[0-9]+/ual/pose|/magna/sm/mission/.*"
+              r"|/magna/uav_[0-9]+/path/.*|/magna/uav_[0-9]+/goal|/magna/gs/critical_event")
+
+
+class GroundStationServices:
+    """What the mission's states act through: world node, simulator, UAV managers, pause."""
+
+    def __init__(self, mission, mission_file: Path, data_dir: Path | None, save_data: bool, control_rate: float,
+                 manager_output: str):
+        self.mission, self.mission_file = mission, mission_file
+        self.data_dir, self.save_data = data_dir, save_data
+        self.control_rate, self.manager_output = control_rate, manager_output
+        self.paused = threading.Event()
+        self.resumed = threading.Condition()
+        self.button = threading.Event()
+        self.clients = ActionClients()
+        self.world_parts: list[str] = []
+        self.spawned: list[int] = []
+        self.managers: dict[int, subprocess.Popen] = {}
+        self.configs = {c.id: c for c in mission.agents}
+
+    # --- helpers the states use ------------------------------------------------------------
+    def action_client(self, uav_id: int, action: str):
+        return self.clients.get(uav_id, action)
+
+    def wait_while_paused(self, stop) -> bool:
+        while self.paused.is_set():
+            if stop() or rospy.is_shutdown():
+                return False
+            time.sleep(0.05)
+        return True
+
+    def resolve_poses(self, definition: list) -> list[tuple[np.ndarray, np.ndarray]]:
+        request = [item if isinstance(item, str) else json.dumps(item) for item in definition]
+        rospy.wait_for_service("/magna/world/get_fspset", timeout=30.0)
+        answer = rospy.ServiceProxy("/magna/world/get_fspset", GetFreeSpacePoseSet)(definition=request)
+        if not answer.success:
+            raise ValueError(f"pose definition {definition}: {answer.message}")
+        return [(np.array([p.position.x, p.position.y, p.position.z]),
+                 np.array([p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w]))
+                for p in answer.poses.poses]
+
+    def csv_path(self, uav_id: int) -> Path | str:
+        return self.data_dir / f"uav_{uav_id}.csv" if self.data_dir else ""
+
+    # --- callback states ----------------------------------------------------------------------
+    def world_config(self, action: str, world_id, definition) -> bool:
+        """spawn: the world node is the world (make sure it is up; add what comes with it);
+        add: a part from the hyperparameters' world or inline volumes; delete: every part added."""
+        rospy.wait_for_service("/magna/world/add", timeout=30.0)
+        if action == "spawn" and definition is None:
+            return True
+        if action in ("spawn", "add"):
+            part = f"world_{world_id or 'main'}_part_{len(self.world_parts)}"
+            if definition is None or definition.from_hyperparameters:
+                text = "from_hyperparameters"
+            else:
+                text = json.dumps(list(definition.volumes))  # a bare list of volumes: inline, as missions write it
+            answer = rospy.ServiceProxy("/magna/world/add", AddWorldPart)(id=part, world="", subworld="",
+                                                                          definition_json=text)
+            if not answer.success:
+                rospy.logerr(f"world_config add: {answer.message}")
+                return False
+            self.world_parts.append(part)
+            return True
+        if action == "delete":
+            return self.delete_world()
+        rospy.logerr(f"world_config action {action!r} is unknown: spawn, add or delete")
+        return False
+
+    def delete_world(self) -> bool:
+        ok = True
+        delete = rospy.ServiceProxy("/magna/world/delete", DeleteWorldPart)
+        for part in list(self.world_parts):
+            try:
+                answer = delete(id=part)
+                ok = ok and answer.success
+            except rospy.ServiceException as error:
+                rospy.logwarn(f"delete world part {part}: {error}")
+                ok = False
+            self.world_parts.remove(part)
+        return ok
+
+    def wait(self, exit_type: str, duration: float, state) -> bool:
+        if exit_type == "button":
+            self.button.clear()
+            rospy.loginfo("mission waits for the operator: rosservice call /magna/gs/continue")
+            while not self.button.wait(0.1):
+                if state.preempt_requested() or rospy.is_shutdown():
+                    return False
+            return True
+        return wait_sim_seconds(duration, state.preempt_requested)
+
+    def spawn_agents(self, initial_poses) -> bool:
+        agents = self.mission.agents
+        if len(initial_poses) < len(agents):
+            rospy.logerr(f"spawn_agents: {len(initial_poses)} initial poses for {len(agents)} agents")
+            return False
+        rospy.wait_for_service("/magna/sim/spawn_model", timeout=30.0)
+        spawn = rospy.ServiceProxy("/magna/sim/spawn_model", SpawnModel)
+        for config, definition in zip(agents, initial_poses, strict=False):
+            yaw = float(definition.yaw or 0.0)
+            poses = self.resolve_poses(definition.as_list()[:4])
+            position = poses[0][0]
+            pose = PoseStamped().pose
+            pose.position.x, pose.position.y, pose.position.z = (float(v) for v in position)
+            pose.orientation.z, pose.orientation.w = np.sin(yaw / 2), np.cos(yaw / 2)
+            r, g, b, a = config.marker_rgba
+            answer = spawn(name=f"uav_{config.id}", kind="uav", pose=pose, color=ColorRGBA(r, g, b, a),
+                           uav_id=config.id, airframe=config.model, flight_model="light")
+            if not answer.success:
+                rospy.logerr(f"spawn_agents: UAV {config.id}: {answer.message}")
+                return False
+            self.spawned.append(config.id)
+            self._start_manager(config.id)
+        for config in agents:  # each manager is ready when its action servers answer
+            self.clients.get(config.id, "take_off")
+        return True
+
+    def _start_manager(self, uav_id: int) -> None:
+        command = ["rosrun", "magna_uav", "uav_manager", f"__name:=uav_{uav_id}_manager", f"_id:={uav_id}",
+                   f"_mission_file:={self.mission_file}", f"_control_rate:={self.control_rate}"]
+        if self.data_dir:
+            command.append(f"_data_dir:={self.data_dir}")
+        quiet = {} if self.manager_output == "screen" else {"stdout": subprocess.DEVNULL,
+                                                            "stderr": subprocess.DEVNULL}
+        self.managers[uav_id] = subprocess.Popen(command, start_new_session=True, **quiet)
+
+    def algorithm_control(self, ids, name, action, params, values, text_value: str = "") -> bool:
+        ok = True
+        for uav_id in ids:
+            service = f"/magna/uav_{uav_id}/algorithm_control"
+            rospy.wait_for_service(service, timeout=30.0)
+            answer = rospy.ServiceProxy(service, AlgorithmControl)(name=name, action=action, params=params,
+                                                                   values=[float(v) for v in values],
+                                                                   text_value=text_value)
+            if not answer.success:
+                rospy.logerr(f"algorithm_control UAV {uav_id}: {answer.message}")
+                ok = False
+        return ok
+
+    def save_csv(self, ids) -> bool:
+        if not self.save_data or not self.data_dir:
+            return True
+        ok = True
+        for uav_id in ids:
+            client = self.clients.get(uav_id, "save_csv")
+            client.send_goal(actions.SaveCSVGoal(path=str(self.csv_path(uav_id))))
+            client.wait_for_result(rospy.Duration(30.0))
+            result = client.get_result()
+            if result is None or result.outcome != "succeeded":
+                rospy.logerr(f"save_csv UAV {uav_id}: {getattr(result, 'message', 'no answer')}")
+                ok = False
+        return ok
+
+    # --- the end --------------------------------------------------------------------------
+    def stop_managers(self, grace: float = 10.0) -> None:
+        for uav_id in list(self.managers):
+            try:
+                rospy.wait_for_service(f"/magna/uav_{uav_id}/die", timeout=2.0)
+                rospy.ServiceProxy(f"/magna/uav_{uav_id}/die", Die)(save_data=False)
+            except (rospy.ROSException, rospy.ServiceException):
+                pass
+        deadline = time.monotonic() + grace
+        for process in self.managers.values():
+            try:
+                process.wait(max(0.1, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                end_group(process)
+        self.managers.clear()
+        self.clients.stop()
+
+    def delete_uavs(self) -> None:
+        try:
+            rospy.wait_for_service("/magna/sim/delete_model", timeout=2.0)
+        except rospy.ROSException:
+            return
+        delete = rospy.ServiceProxy("/magna/sim/delete_model", DeleteModel)
+        for uav_id in self.spawned:
+            try:
+                delete(name=f"uav_{uav_id}")
+            except rospy.ServiceException as error:
+                rospy.logwarn(f"delete uav_{uav_id}: {error}")
+        self.spawned.clear()
+
+
+def end_group(process: subprocess.Popen, grace: float = 5.0) -> None:
+    """End a process we started and everything in its process group: SIGINT, then SIGTERM, then SIGKILL."""
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
+        if process.poll() is not None:
+            return
+        try:
+            os.killpg(process.pid, sig)
+        except ProcessLookupError:
+            return
+        try:
+            process.wait(grace)
+        except subprocess.TimeoutExpired:
+            continue
+
+
+class GroundStation:
+    def __init__(self):
+        self.hyper = rospy.get_param("/magna/hyperparameters", {}) or {}
+        mission_file = rospy.get_param("~mission_file", "")
+        if not mission_file:
+            raise MissionError("~mission_file is missing: give the mission JSON, e.g. _mission_file:=missions/x.json")
+        self.mission_file = Path(mission_file).expanduser().resolve()
+        loaded = load_mission(self.mission_file)
+        self.mission, self.changes = loaded.mission, loaded.changes
+        for change in self.changes:
+            rospy.loginfo(f"mission migrated: {change}")
+        data_dir = rospy.get_param("~data_dir", "") or self.hyper.get("data_dir", "")
+        self.data_dir = Path(data_dir).expanduser() if data_dir else None
+        if self.data_dir:
+            self.data_dir.mkdir(parents=True, exist_ok=True)
+        self.save_data = bool(rospy.get_param("~save_data", self.hyper.get("save_data", True)))
+        self.services = GroundStationServices(self.mission, self.mission_file, self.data_dir, self.save_data,
+                                              float(rospy.get_param("~control_rate", 10.0)),
+                                              rospy.get_param("~manager_output", "log"))
+        self.machine = build_machine(self.mission, RosStateFactory(self.services))
+        self.introspection = IntrospectionServer("mission", self.machine)
+        self.statuses: dict[int, dict] = {c.id: {} for c in self.mission.agents}
+        self.critical_events: list[tuple[int, str]] = []
+        self.lock = threading.Lock()
+        self.critical = rospy.Publisher("/magna/gs/critical_event", String, queue_size=1, latch=True)
+        self.bag = self._start_bag() if rospy.get_param("~bag", self.hyper.get("save_bag", True)) else None
+        for config in self.mission.agents:
+            rospy.Subscriber(f"/uav_{config.id}/ual/pose", PoseStamped, self._on_pose, config.id, queue_size=1)
+            rospy.Subscriber(f"/uav_{config.id}/ual/state", UalState, self._on_ual_state, config.id, queue_size=1)
+            rospy.Subscriber(f"/uav_{config.id}/mavros/battery", BatteryState, self._on_battery, config.id,
+                             queue_size=1)
+        self.service_handles = [
+            rospy.Service("/magna/gs/state_actualization", StateActualization, self._on_state),
+            rospy.Service("/magna/gs/command", GroundStationCommand, self._on_command),
+            rospy.Service("/magna/gs/stop", Trigger, self._on_stop),
+            rospy.Service("/magna/gs/continue", Trigger, self._on_continue),
+        ]
+
+    # --- what the ground station hears -----------------------------------------------------
+    def _on_pose(self, msg, uav_id):
+        p, q = msg.pose.position, msg.pose.orientation
+        with self.lock:
+            self.statuses[uav_id]["position"] = np.array([p.x, p.y, p.z])
+            self.statuses[uav_id]["yaw"] = float(np.arctan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y ** 2 + q.z ** 2)))
+
+    def _on_ual_state(self, msg, uav_id):
+        with self.lock:
+            self.statuses[uav_id]["ual_state"] = msg.state
+
+    def _on_battery(self, msg, uav_id):
+        with self.lock:
+            self.statuses[uav_id]["battery"] = msg.percentage
+
+    def _on_state(self, req):
+        with self.lock:
+            if req.id not in self.statuses:
+                return StateActualizationResponse(False, f"UAV {req.id} is not in this mission")
+            self.statuses[req.id]["state"] = req.state
+            if req.critical_event:
+                self.critical_events.append((req.id, req.critical_event))
+        if req.critical_event:
+            rospy.logwarn(f"UAV {req.id}: {req.critical_event} ({req.state})")
+        return StateActualizationResponse(True, "")
+
+    def uav_statuses(self) -> dict[int, UavStatus]:
+        with self.lock:
+            return {i: UavStatus(i, s.get("position"), s.get("yaw", 0.0), s.get("state", ""), s.get("ual_state", 0),
+                                 s.get("battery", float("nan"))) for i, s in self.statuses.items()}
+
+    # --- operators ------------------------------------------------------------------------
+    def _on_command(self, req):
+        params = [Param(p.name, p.number, p.text, p.unit) for p in req.parameters]
+        boundaries = rospy.get_param("/magna/world/boundaries", None)
+        try:
+            plan = plan_command(req.intent, req.action, req.agent, params, self.uav_statuses(),
+                                None if boundaries is None else np.asarray(boundaries, dtype=float))
+            self._execute(plan)
+        except CommandRefused as refusal:
+            rospy.logwarn(f"command refused: {refusal}")
+            return GroundStationCommandResponse(False, str(refusal), [])
+        except (RuntimeError, rospy.ServiceException, rospy.ROSException) as error:
+            return GroundStationCommandResponse(False, f"could not carry it out: {error}", [])
+        values = [NamedValue(a.name, a.number, a.text, a.unit) for a in plan.answers]
+        return GroundStationCommandResponse(True, plan.message, values)
+
+    def _execute(self, plan: CommandPlan) -> None:
+        if plan.mission == "standby":
+            self.services.paused.set()
+        elif plan.mission == "resume":
+            self.services.paused.clear()
+            self.services.button.set()
+        if plan.algorithm:
+            name, ids = plan.algorithm
+            if not self.services.algorithm_control(ids, name, "set", [], []):
+                raise CommandRefused(f"a UAV manager refused algorithm {name}; see its log")
+        for order in plan.orders:
+            goal_type = getattr(actions, {"take_off": "TakeOff", "land": "Land", "basic_move": "BasicMove",
+                                          "follow_agent_ad": "FollowAgentAD"}[order.action] + "Goal")
+            self.services.action_client(order.uav_id, order.action).send_goal(goal_type(**order.fields))
+
+    def _on_stop(self, req):
+        self.machine.request_preempt()
+        return TriggerResponse(True, "the mission is being stopped; the finishing sequence follows")
+
+    def _on_continue(self, req):
+        self.services.button.set()
+        return TriggerResponse(True, "continuing")
+
+    # --- life --------------------------------------------------------------------------------
+    def _start_bag(self) -> subprocess.Popen | None:
+        if not self.data_dir:
+            return None
+        path = self.data_dir / "simulation.bag"
+        return subprocess.Popen(["rosbag", "record", "-q", "-O", str(path), "--regex", BAG_TOPICS],
+                                start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+
+    def run(self) -> int:
+        self.introspection.start()
+        start = rospy.get_time()
+        rospy.loginfo(f"mission {self.mission_file.name}: {len(self.mission.agents)} UAVs, starting")
+        try:
+            outcome = self.machine.execute()
+            message = f"mission ended {outcome}"
+        except Exception as error:  # the finishing sequence must run whatever happened
+            rospy.logerr(f"mission failed: {error!r}")
+            outcome, message = "aborted", f"the mission failed: {error}"
+        duration = rospy.get_time() - start
+        self.finish(outcome, message, duration)
+        return 0
+
+    def finish(self, outcome: str, message: str, duration: float) -> None:
+        """Save, stop the managers, delete models and obstacles, close the bag, tell the Master."""
+        rospy.loginfo(f"finishing: {message} after {duration:.1f} s of sim time")
+        services = self.services
+        if self.save_data and self.data_dir and services.spawned:
+            services.save_csv(list(services.spawned))
+        if self.data_dir:
+            write_atomically(self.data_dir / "mission.json", lambda f: f.write(self.mission_file.read_text()),
+                             overwrite=True)
+        services.stop_managers()
+        services.delete_uavs()
+        services.delete_world()
+        if self.bag is not None:
+            end_group(self.bag, grace=10.0)
+            active = self.data_dir / "simulation.bag.active"
+            if active.exists():
+                shutil.move(active, self.data_dir / "simulation.bag")
+        with self.lock:
+            collisions = sum(1 for _, event in self.critical_events if event == "collision")
+            events = list(self.critical_events)
+        success = outcome in SUCCESS_OUTCOMES and not events
+        if events:
+            message += "; critical events: " + ", ".join(f"UAV {i} {e}" for i, e in events)
+        self._report(success, outcome, message, duration, collisions)
+        self.introspection.stop()
+
+    def _report(self, success, outcome, message, duration, collisions) -> None:
+        name = "/magna/master/simulation_termination"
+        try:
+            rospy.wait_for_service(name, timeout=2.0)
+        except rospy.ROSException:
+            rospy.loginfo(f"no Master to report to: {outcome}, {message}")
+            return
+        try:
+            rospy.ServiceProxy(name, SimulationTermination)(success=success, outcome=outcome, message=message,
+                                                            sim_duration=duration, collisions=collisions)
+        except rospy.ServiceException as error:
+            rospy.logwarn(f"the Master did not take the result: {error}")
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="rosrun magna_gs ground_station", description=HELP,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.parse_known_args(rospy.myargv(argv)[1:] if argv is None else argv)
+    rospy.init_node("ground_station")
+    try:
+        station = GroundStation()
+    except (MissionError, ValueError) as error:
+        rospy.logfatal(str(error))
+        return 2
+    return station.run()
