@@ -15,6 +15,8 @@ import sys
 COMMANDS: list[tuple[str, str]] = [
     ("doctor", "magna_master.doctor"),
     ("world", "magna_worlds.cli"),
+    ("mission", "magna_gs.mission.cli"),
+    ("run", "magna_master.run_cli"),
 ]
 
 

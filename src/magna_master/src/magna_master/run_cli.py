@@ -1,0 +1,132 @@
+"""`magna run`: a batch of simulations of one mission in one world, saved under the data root.
+
+    magna run --world Gym/1Obs_Central_Cylinder --mission Gym/2UAVs_2paths_Central_Cylinder --n-iter 5 \\
+        [--name NAME] [--dataset N] [--rtf max] [--seed S] [--no-bag] [--no-data] [--search-path DIR ...] \\
+        [--data-root DIR] [--append|--overwrite|--skip-save] [--time-limit SECONDS] [--launch-command CMD]
+
+Exit status: 0 when every simulation ran to a mission outcome (a failed mission is data, not an
+error), 1 when one or more crashed or could not start, 2 for bad input (nothing started or
+written), 130 when interrupted (finished simulations and summary.csv are kept).
+"""
+from __future__ import annotations
+
+import argparse
+import shlex
+import sys
+from pathlib import Path
+
+HELP = "run a batch of simulations of a mission in a world; save bags, CSVs and a summary per dataset"
+
+_EPILOG = """\
+Data goes to DATA_ROOT/Simulations/WORLD/SUBWORLD/MISSION/SUBMISSION/NAME/dataset_N/simulation_M/
+(result.json, world.json, mission.json, uav_ID.csv, simulation.bag, logs/) with dataset_N/summary.csv
+holding one row per simulation (id, success, outcome, message, duration in simulated s, wall_time,
+collisions). Simulation M runs with seed S+M.
+
+Worlds are looked up as WORLD/SUBWORLD.json, missions as MISSION/SUBMISSION.json: first in each
+--search-path DIR (its worlds/ or Worlds/, missions/ or Missions/, or DIR itself), then in the
+project's worlds/ and missions/.
+
+When simulation folders of this dataset exist already: --append numbers the new ones after the last,
+--overwrite deletes and rewrites exactly the folders it runs again (each just before its run),
+--skip-save runs without saving anything; with none of them you are asked on a terminal, and
+elsewhere the run stops before starting anything.
+
+Ctrl-C stops the running simulation (its processes are ended and it is marked 'interrupted' in
+result.json and summary.csv), starts no more, and keeps every finished one.
+
+examples:
+  magna run --world Gym/1Obs_Central_Cylinder --mission Gym/2UAVs_2paths_Central_Cylinder --n-iter 5 \\
+      --search-path ../shared/ros_magna_corpus
+  magna run --world Gym/1Obs_Central_Cylinder --mission Gym/2UAVs_2paths_Central_Cylinder --n-iter 80 \\
+      --search-path ../shared/ros_magna_corpus --name orca --seed 1000 --append
+  magna run --world worlds/Gym/Four_Cylinders.json --mission my_missions/Gym/Four.json --no-data --rtf 1.0
+"""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from magna_master import storage
+
+    parser.formatter_class = argparse.RawDescriptionHelpFormatter
+    parser.epilog = _EPILOG
+    parser.add_argument("--world", required=True, metavar="WORLD/SUBWORLD",
+                        help="the world file WORLD/SUBWORLD.json, e.g. Gym/1Obs_Central_Cylinder")
+    parser.add_argument("--mission", required=True, metavar="MISSION/SUBMISSION",
+                        help="the mission file MISSION/SUBMISSION.json, e.g. Gym/2UAVs_2paths_Central_Cylinder")
+    parser.add_argument("--n-iter", type=int, default=1, metavar="N", help="simulations to run (default: 1)")
+    parser.add_argument("--name", default=storage.DEFAULT_NAME,
+                        help="name of this series of datasets (a folder; default: %(default)s)")
+    parser.add_argument("--dataset", type=int, default=1, metavar="N", help="dataset number (default: 1)")
+    parser.add_argument("--rtf", default="max", metavar="max|FACTOR",
+                        help="real-time factor of the simulator: max (as fast as possible) or e.g. 1.0 "
+                             "(default: max)")
+    parser.add_argument("--seed", type=int, default=0, metavar="S",
+                        help="base seed; simulation M uses S+M (default: 0)")
+    parser.add_argument("--no-bag", action="store_true", help="do not record a bag per simulation")
+    parser.add_argument("--no-data", action="store_true",
+                        help="save nothing (no folders, no summary); the table is printed at the end")
+    parser.add_argument("--search-path", action="append", default=[], type=Path, metavar="DIR",
+                        help="also look for worlds and missions here, first (repeatable)")
+    parser.add_argument("--data-root", type=Path, default=storage.DEFAULT_DATA_ROOT, metavar="DIR",
+                        help="where Simulations/ goes (default: ~/magna_data)")
+    conflict = parser.add_mutually_exclusive_group()
+    conflict.add_argument("--append", dest="policy", action="store_const", const=storage.APPEND,
+                          help="if the dataset has simulations: number the new ones after the last")
+    conflict.add_argument("--overwrite", dest="policy", action="store_const", const=storage.OVERWRITE,
+                          help="if the dataset has simulations: delete and rewrite the ones run again")
+    conflict.add_argument("--skip-save", dest="policy", action="store_const", const=storage.SKIP_SAVE,
+                          help="if the dataset has simulations: run without saving anything")
+    parser.add_argument("--time-limit", type=float, default=600.0, metavar="SECONDS",
+                        help="wall-clock seconds per simulation before the ground station is stopped "
+                             "(default: 600; 0: none)")
+    parser.add_argument("--launch-command", default="", metavar="CMD",
+                        help="replace 'roslaunch magna_gs simulation.launch ...' (e.g. a stand-in ground "
+                             "station); placeholders: " + ", ".join(f"{{{p}}}" for p in _placeholders()))
+
+
+def _placeholders():
+    from magna_master.batch import PLACEHOLDERS
+
+    return PLACEHOLDERS
+
+
+def build_config(args):
+    """BatchConfig from parsed arguments; BatchError on bad input."""
+    from magna_master.batch import DEFAULT_LAUNCH_COMMAND, BatchConfig, BatchError, resolve_inputs
+
+    inputs = resolve_inputs(args.world, args.mission, args.search_path)
+    command = DEFAULT_LAUNCH_COMMAND
+    if args.launch_command.strip():
+        try:
+            command = tuple(shlex.split(args.launch_command))
+        except ValueError as err:
+            raise BatchError(f"--launch-command: {err}") from None
+    return BatchConfig(inputs=inputs, n_iter=args.n_iter, name=args.name, n_dataset=args.dataset, rtf=args.rtf,
+                       seed=args.seed, bag=not args.no_bag, save_data=not args.no_data,
+                       data_root=args.data_root, policy=args.policy,
+                       time_limit=args.time_limit or None, launch_command=command)
+
+
+def run(args) -> int:
+    from magna_master import storage
+    from magna_master.batch import BatchError, format_summary, run_batch
+    from magna_master.cli import UsageError
+
+    try:
+        config = build_config(args)
+        ask = storage.ask_policy if sys.stdin is not None and sys.stdin.isatty() else None
+        result = run_batch(config, ask=ask)
+    except (BatchError, storage.StorageError) as err:
+        raise UsageError(str(err)) from None
+    print(format_summary(result), flush=True)
+    if result.interrupted:
+        return 130
+    return 1 if result.failed_to_run else 0
+
+
+def node_main(argv: list[str] | None = None) -> int:
+    """nodes/batch: `magna run` with the arguments roslaunch gives (its name:=value remappings dropped)."""
+    from magna_master.cli import main
+
+    argv = sys.argv[1:] if argv is None else argv
+    return main(["run", *[a for a in argv if ":=" not in a]])

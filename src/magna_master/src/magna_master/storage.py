@@ -1,0 +1,375 @@
+"""Where simulation batches keep their data, and what happens when a run would meet older data.
+
+The tree (DESIGN.md §2)::
+
+    <data root>/Simulations/<world>/<subworld>/<mission>/<submission>/<name>/dataset_<n>/
+        summary.csv                  one row per simulation, rewritten atomically after each one
+        simulation_<m>/              m counts from 1
+            result.json              what the Master recorded (written atomically)
+            world.json mission.json uav_<id>.csv simulation.bag    written by the ground station
+            logs/                    launch.log, supervisor.log and the ROS node logs
+
+The data root defaults to `~/magna_data`. A simulation folder that already exists
+is a *conflict*; the policy says what to do with it:
+
+- ``append``: number the new simulations after the last existing one (nothing is touched);
+- ``overwrite``: the only way anything is deleted: each folder that will be rewritten is
+  deleted just before its simulation starts, and its summary row with it; other folders stay;
+- ``skip-save``: run the simulations without writing anything;
+- ``abort`` (no policy given and nobody to ask): stop before starting anything, with a
+  message that lists the three options.
+
+Nothing here imports ROS: the batch loop and the tests use it directly.
+"""
+from __future__ import annotations
+
+import csv
+import errno
+import fcntl
+import io
+import json
+import os
+import re
+import shutil
+import tempfile
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+DEFAULT_DATA_ROOT = Path("~/magna_data")
+DEFAULT_NAME = "default"
+SUMMARY_FILE = "summary.csv"
+RESULT_FILE = "result.json"
+SUMMARY_COLUMNS = ("id", "success", "outcome", "message", "duration", "wall_time", "collisions")
+
+APPEND, OVERWRITE, SKIP_SAVE, ABORT = "append", "overwrite", "skip-save", "abort"
+POLICIES = (APPEND, OVERWRITE, SKIP_SAVE, ABORT)
+
+_SIMULATION_DIR = re.compile(r"^simulation_(\d+)$")
+
+
+class StorageError(RuntimeError):
+    """A storage problem the user can fix (bad name, conflict, locked dataset); exit status 2."""
+
+
+class StorageConflict(StorageError):
+    """Planned simulation folders exist already and no policy says what to do."""
+
+    def __init__(self, dataset_dir: Path, existing: list[int], planned: list[int]):
+        self.dataset_dir, self.existing, self.planned = dataset_dir, existing, planned
+        clash = sorted(set(existing) & set(planned))
+        super().__init__(
+            f"{dataset_dir} already holds {_id_ranges(clash, 'simulation_')} "
+            f"({len(existing)} simulation folder(s) in all, last simulation_{max(existing)}); "
+            "nothing was started. Choose: --append (number the new simulations from "
+            f"{max(existing) + 1}), --overwrite (delete and rewrite {_id_ranges(clash, 'simulation_')}), "
+            "--skip-save (run without saving), or another --name/--dataset")
+
+
+def _id_ranges(ids: Iterable[int], prefix: str = "") -> str:
+    """[1, 2, 3, 5] -> 'simulation_1..3, simulation_5'."""
+    ids = sorted(ids)
+    parts, start = [], None
+    for i, value in enumerate(ids):
+        if start is None:
+            start = value
+        if i + 1 == len(ids) or ids[i + 1] != value + 1:
+            parts.append(f"{prefix}{start}" if start == value else f"{prefix}{start}..{value}")
+            start = None
+    return ", ".join(parts) or "nothing"
+
+
+def check_component(value: str, what: str) -> str:
+    """A name used as one folder of the tree: no separators, not '.' or '..', not empty."""
+    if not value or value in (".", "..") or "/" in value or "\0" in value or value != value.strip():
+        raise StorageError(f"{what} {value!r} cannot name a folder: use a plain name without '/' "
+                           "or surrounding spaces (e.g. 'default')")
+    return value
+
+
+@dataclass(frozen=True)
+class StorageKey:
+    """What a batch simulates and under which name; it decides the folder of its datasets."""
+
+    world: str
+    subworld: str
+    mission: str
+    submission: str
+    name: str = DEFAULT_NAME
+
+    def __post_init__(self):
+        for what in ("world", "subworld", "mission", "submission", "name"):
+            check_component(getattr(self, what), what)
+
+    def base_dir(self, data_root: Path) -> Path:
+        return (Path(data_root).expanduser() / "Simulations" / self.world / self.subworld / self.mission
+                / self.submission / self.name)
+
+    def dataset_dir(self, data_root: Path, n_dataset: int) -> Path:
+        if n_dataset < 0:
+            raise StorageError(f"dataset number must be >= 0, got {n_dataset}")
+        return self.base_dir(data_root) / f"dataset_{n_dataset}"
+
+
+def simulation_dir(dataset_dir: Path, m: int) -> Path:
+    return Path(dataset_dir) / f"simulation_{m}"
+
+
+def existing_simulations(dataset_dir: Path) -> list[int]:
+    """Ids of the `simulation_<m>` folders in a dataset, sorted (none when it does not exist)."""
+    try:
+        entries = list(Path(dataset_dir).iterdir())
+    except FileNotFoundError:
+        return []
+    ids = []
+    for entry in entries:
+        match = _SIMULATION_DIR.match(entry.name)
+        if match and entry.is_dir():
+            ids.append(int(match.group(1)))
+    return sorted(ids)
+
+
+# --- atomic files ------------------------------------------------------------------------------------------
+
+def atomic_write_text(path: Path, text: str) -> None:
+    """Write `text` to `path` so that readers see the old file or the whole new one, never a part."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", newline="") as handle:
+            handle.write(text)
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
+
+
+def write_result(sim_dir: Path, result: dict) -> Path:
+    """result.json of one simulation, atomically."""
+    path = Path(sim_dir) / RESULT_FILE
+    atomic_write_text(path, json.dumps(result, indent=2, sort_keys=True, default=str) + "\n")
+    return path
+
+
+def read_result(path: Path) -> dict | None:
+    """A result.json, or None when missing or unreadable (a simulation that never finished writing it)."""
+    try:
+        data = json.loads(Path(path).read_text())
+    except (OSError, ValueError):
+        return None
+    return data if isinstance(data, dict) else None
+
+
+# --- summary.csv ---------------------------------------------------------------------------------------------
+
+def summary_row(result: dict) -> dict[str, str]:
+    """The summary.csv row of one result.json."""
+    return {
+        "id": str(int(result["id"])),
+        "success": "True" if result.get("success") else "False",
+        "outcome": str(result.get("outcome", "")),
+        "message": " ".join(str(result.get("message", "")).split()),  # one line per row
+        "duration": f"{float(result.get('sim_duration') or 0.0):.3f}",
+        "wall_time": f"{float(result.get('wall_time') or 0.0):.3f}",
+        "collisions": str(int(result.get("collisions") or 0)),
+    }
+
+
+def read_summary(dataset_dir: Path) -> list[dict[str, str]]:
+    """The rows of a dataset's summary.csv (none when it does not exist)."""
+    path = Path(dataset_dir) / SUMMARY_FILE
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        return []
+    return [dict(row) for row in csv.DictReader(io.StringIO(text))]
+
+
+def _row_key(row: dict) -> tuple:
+    try:
+        return (0, int(row.get("id", "")), "")
+    except ValueError:
+        return (1, 0, str(row.get("id")))
+
+
+def write_summary(dataset_dir: Path, rows: Iterable[dict]) -> Path:
+    """Write summary.csv atomically, rows sorted by id; columns beyond SUMMARY_COLUMNS are kept after them."""
+    rows = sorted(rows, key=_row_key)
+    extra = []
+    for row in rows:
+        extra.extend(k for k in row if k not in SUMMARY_COLUMNS and k not in extra and k is not None)
+    out = io.StringIO()
+    writer = csv.DictWriter(out, fieldnames=[*SUMMARY_COLUMNS, *extra], extrasaction="ignore", lineterminator="\n")
+    writer.writeheader()
+    for row in rows:
+        writer.writerow({k: row.get(k, "") for k in (*SUMMARY_COLUMNS, *extra)})
+    path = Path(dataset_dir) / SUMMARY_FILE
+    atomic_write_text(path, out.getvalue())
+    return path
+
+
+def update_summary(dataset_dir: Path, result: dict) -> Path:
+    """Put (or replace) the row of `result` in summary.csv, keeping every other row."""
+    row = summary_row(result)
+    rows = [r for r in read_summary(dataset_dir) if r.get("id") != row["id"]]
+    return write_summary(dataset_dir, [*rows, row])
+
+
+def remove_summary_row(dataset_dir: Path, m: int) -> None:
+    rows = read_summary(dataset_dir)
+    kept = [r for r in rows if r.get("id") != str(m)]
+    if len(kept) != len(rows):
+        write_summary(dataset_dir, kept)
+
+
+# --- planning a batch -------------------------------------------------------------------------------------------
+
+@dataclass
+class StoragePlan:
+    """Which simulation ids a batch runs and where (if anywhere) it saves them."""
+
+    dataset_dir: Path | None  # None: nothing is written
+    ids: list[int]
+    policy: str | None = None  # the conflict policy applied, None when there was no conflict
+    overwrite: list[int] = field(default_factory=list)  # ids whose existing folder is deleted before rewriting
+    reason: str = ""  # why nothing is saved, when dataset_dir is None
+
+    @property
+    def save(self) -> bool:
+        return self.dataset_dir is not None
+
+    def simulation_dir(self, m: int) -> Path | None:
+        return simulation_dir(self.dataset_dir, m) if self.dataset_dir is not None else None
+
+
+def ask_policy(conflict: StorageConflict, input_fn: Callable[[str], str] = input) -> str:
+    """Ask on the terminal what to do about a conflict; returns one of POLICIES."""
+    clash = _id_ranges(sorted(set(conflict.existing) & set(conflict.planned)), "simulation_")
+    prompt = (f"{conflict.dataset_dir} already holds {clash}.\n"
+              f"  [a]ppend (new simulations from {max(conflict.existing) + 1}), [o]verwrite ({clash}), "
+              "[s]kip-save (run without saving), [q]uit? ")
+    answers = {"a": APPEND, "append": APPEND, "o": OVERWRITE, "overwrite": OVERWRITE, "s": SKIP_SAVE,
+               "skip-save": SKIP_SAVE, "q": ABORT, "quit": ABORT, "abort": ABORT, "": ABORT}
+    for _ in range(3):
+        try:
+            answer = input_fn(prompt).strip().lower()
+        except EOFError:
+            return ABORT
+        if answer in answers:
+            return answers[answer]
+    return ABORT
+
+
+def plan_storage(dataset_dir: Path, n_iter: int, policy: str | None = None, save: bool = True,
+                 ask: Callable[[StorageConflict], str] | None = None) -> StoragePlan:
+    """Decide the simulation ids and what to do with older folders. Touches nothing on disk.
+
+    Without a conflict the ids are 1..n_iter (`append` numbers after the last existing folder
+    even then). With one, `policy` decides; without a policy `ask` is called when given (a
+    terminal), else StorageConflict is raised.
+    """
+    if n_iter < 1:
+        raise StorageError(f"the number of simulations must be >= 1, got {n_iter}")
+    if policy is not None and policy not in POLICIES:
+        raise StorageError(f"unknown conflict policy {policy!r}; use one of {', '.join(POLICIES)}")
+    planned = list(range(1, n_iter + 1))
+    if not save:
+        return StoragePlan(None, planned, reason="saving is off (--no-data)")
+    existing = existing_simulations(dataset_dir)
+    if policy == APPEND:
+        start = (max(existing) if existing else 0) + 1
+        return StoragePlan(Path(dataset_dir), list(range(start, start + n_iter)), APPEND if existing else None)
+    clash = sorted(set(existing) & set(planned))
+    if not clash:
+        return StoragePlan(Path(dataset_dir), planned)
+    conflict = StorageConflict(Path(dataset_dir), existing, planned)
+    if policy is None and ask is not None:
+        policy = ask(conflict)
+        if policy == APPEND:
+            return plan_storage(dataset_dir, n_iter, APPEND, save)
+    if policy == OVERWRITE:
+        return StoragePlan(Path(dataset_dir), planned, OVERWRITE, clash)
+    if policy == SKIP_SAVE:
+        return StoragePlan(None, planned, SKIP_SAVE, reason=f"{dataset_dir} holds data already (--skip-save)")
+    raise conflict
+
+
+def prepare_simulation_dir(plan: StoragePlan, m: int) -> Path:
+    """Create the folder of simulation `m`; with `overwrite` first delete the old one and its summary row.
+
+    Only a folder named in `plan.overwrite` is ever deleted; any other existing folder is an error.
+    """
+    if plan.dataset_dir is None:
+        raise StorageError("this batch saves nothing; there is no simulation folder to prepare")
+    path = simulation_dir(plan.dataset_dir, m)
+    if path.exists() or path.is_symlink():
+        if m not in plan.overwrite:
+            raise StorageError(f"{path} appeared while the batch ran; it was left as it is. Run again with "
+                               "--append or another --name/--dataset")
+        if path.is_symlink() or not path.is_dir():
+            path.unlink()
+        else:
+            shutil.rmtree(path)
+        remove_summary_row(plan.dataset_dir, m)
+    path.mkdir(parents=True)
+    return path
+
+
+class DatasetLock:
+    """An exclusive lock on a dataset folder, so that two batches never write into the same one.
+
+    The folder is created if needed; on release, the folders the lock created are removed
+    again if they stayed empty.
+    """
+
+    def __init__(self, dataset_dir: Path):
+        self.dataset_dir = Path(dataset_dir)
+        self._fd: int | None = None
+        self._created: list[Path] = []  # the folders this lock made, deepest first
+
+    def acquire(self) -> DatasetLock:
+        if not self.dataset_dir.exists():
+            missing = [self.dataset_dir]
+            missing.extend(p for p in self.dataset_dir.parents if not p.exists())
+            try:
+                self.dataset_dir.mkdir(parents=True)
+                self._created = missing
+            except FileExistsError:
+                pass
+            except OSError as err:
+                raise StorageError(f"cannot create {self.dataset_dir}: {err.strerror}; choose another "
+                                   "--data-root") from None
+        self._fd = os.open(self.dataset_dir, os.O_RDONLY | os.O_DIRECTORY)
+        try:
+            fcntl.flock(self._fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as err:
+            os.close(self._fd)
+            self._fd = None
+            if err.errno in (errno.EWOULDBLOCK, errno.EAGAIN):
+                raise StorageError(f"another magna run is writing to {self.dataset_dir}; wait for it to end "
+                                   "or choose another --name/--dataset") from None
+            raise
+        return self
+
+    def release(self) -> None:
+        if self._fd is not None:
+            fcntl.flock(self._fd, fcntl.LOCK_UN)
+            os.close(self._fd)
+            self._fd = None
+        for folder in self._created:
+            try:
+                folder.rmdir()  # only when still empty: a batch that wrote nothing leaves no folders
+            except OSError:
+                break
+        self._created = []
+
+    def __enter__(self) -> DatasetLock:
+        return self.acquire()
+
+    def __exit__(self, *exc) -> None:
+        self.release()
