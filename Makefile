@@ -10,8 +10,12 @@ help:  ## list the targets
 setup:  ## install Debian packages, the venv and build the catkin workspace (quick when done)
 	@bash scripts/setup.sh
 
-run: setup  ## the main job on a built-in default (today: a live check of the ROS stack)
-	@./magna doctor
+# The default batch: two UAVs crossing the gym's central obstacles with ORCA-3D, three simulations,
+# headless, as fast as the machine goes. Runs append to the dataset (nothing is overwritten).
+RUN_ARGS ?= --world Gym/Central_Obstacle_Torus --mission Gym/2UAVs_Crossing_ORCA --n-iter 3 --rtf max --append
+
+run: setup  ## the main job: a default batch of simulations (RUN_ARGS=... to change it), then its summary
+	@./magna run $(RUN_ARGS)
 
 test: setup  ## linters, unit tests (pytest) and integration tests (gtest, rostest), one summary
 	@bash scripts/test.sh

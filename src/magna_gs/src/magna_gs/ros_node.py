@@ -73,6 +73,7 @@ Private parameters (defaults):
   ~bag (true)                record simulation.bag (tf, markers, UAV poses, the machine's status)
   ~control_rate (10.0)       control rate of the UAV managers it starts
   ~manager_output (log)      where the managers' output goes: log or screen
+  ~button_timeout (0)        s of sim time after which a wait for the operator's button goes on; 0: never
 """
 
 SUCCESS_OUTCOMES = ("completed", "succeeded", "success", "mission_completed", "finished")
@@ -84,10 +85,11 @@ class GroundStationServices:
     """What the mission's states act through: world node, simulator, UAV managers, pause."""
 
     def __init__(self, mission, mission_file: Path, data_dir: Path | None, save_data: bool, control_rate: float,
-                 manager_output: str):
+                 manager_output: str, button_timeout: float = 0.0):
         self.mission, self.mission_file = mission, mission_file
         self.data_dir, self.save_data = data_dir, save_data
         self.control_rate, self.manager_output = control_rate, manager_output
+        self.button_timeout = button_timeout
         self.paused = threading.Event()
         self.resumed = threading.Condition()
         self.button = threading.Event()
@@ -162,10 +164,15 @@ class GroundStationServices:
     def wait(self, exit_type: str, duration: float, state) -> bool:
         if exit_type == "button":
             self.button.clear()
-            rospy.loginfo("mission waits for the operator: rosservice call /magna/gs/continue")
-            while not self.button.wait(0.1):
+            limit = f", or {self.button_timeout:g} s" if self.button_timeout > 0 else ""
+            rospy.loginfo(f"mission waits for the operator: rosservice call /magna/gs/continue{limit}")
+            deadline = rospy.get_time() + self.button_timeout if self.button_timeout > 0 else float("inf")
+            while not self.button.wait(0.05):
                 if state.preempt_requested() or rospy.is_shutdown():
                     return False
+                if rospy.get_time() >= deadline:
+                    rospy.loginfo("nobody pressed the button: the mission goes on (~button_timeout)")
+                    return True
             return True
         return wait_sim_seconds(duration, state.preempt_requested)
 
@@ -295,7 +302,8 @@ class GroundStation:
         self.save_data = bool(rospy.get_param("~save_data", self.hyper.get("save_data", True)))
         self.services = GroundStationServices(self.mission, self.mission_file, self.data_dir, self.save_data,
                                               float(rospy.get_param("~control_rate", 10.0)),
-                                              rospy.get_param("~manager_output", "log"))
+                                              rospy.get_param("~manager_output", "log"),
+                                              float(rospy.get_param("~button_timeout", 0.0)))
         self.machine = build_machine(self.mission, RosStateFactory(self.services))
         self.introspection = IntrospectionServer("mission", self.machine)
         self.statuses: dict[int, dict] = {c.id: {} for c in self.mission.agents}
@@ -425,6 +433,7 @@ class GroundStation:
             if active.exists():
                 shutil.move(active, self.data_dir / "simulation.bag")
         with self.lock:
+            # one report per UAV per contact: two UAVs touching once count 2
             collisions = sum(1 for _, event in self.critical_events if event == "collision")
             events = list(self.critical_events)
         success = outcome in SUCCESS_OUTCOMES and not events

@@ -58,10 +58,10 @@ DEFAULT_LAUNCH_COMMAND: tuple[str, ...] = (
     "roslaunch", "--sigint-timeout=5", "--sigterm-timeout=2", "magna_gs", "simulation.launch",
     "mission_file:={mission_file}", "world:={world}", "subworld:={subworld}", "worlds_path:={worlds_path}",
     "data_dir:={data_dir}", "rtf:={rtf}", "seed:={seed}", "bag:={bag}", "save_data:={save_data}",
-    "output:={output}",
+    "output:={output}", "button_timeout:={button_timeout}",
 )
 PLACEHOLDERS = ("mission_file", "world", "subworld", "worlds_path", "data_dir", "rtf", "seed", "bag", "save_data",
-                "output", "mission", "submission", "n_simulation")
+                "output", "mission", "submission", "n_simulation", "button_timeout")
 
 
 class BatchError(RuntimeError):
@@ -282,6 +282,9 @@ class BatchConfig:
     data_root: Path = storage.DEFAULT_DATA_ROOT
     policy: str | None = None  # append, overwrite, skip-save, abort, or None (ask on a terminal, else abort)
     time_limit: float | None = 600.0  # wall-clock seconds per simulation; None or 0: none
+    # Nobody presses the operator's button in a batch: a `wait` on it goes on after this many
+    # simulated seconds (0: wait for /magna/gs/continue).
+    button_timeout: float = 10.0
     stop_grace: float = 15.0  # after /magna/gs/stop, before the launch is ended
     settle: float = 5.0  # after the termination call, for the launch to exit by itself
     shutdown_timeout: float = 10.0  # between SIGINT, SIGTERM and SIGKILL to the launch
@@ -390,7 +393,7 @@ def launch_command(config: BatchConfig, m: int, data_dir: Path | None, plan: sto
         "worlds_path": str(i.worlds_path), "data_dir": str(data_dir) if data_dir is not None else "",
         "rtf": config.rtf, "seed": str(config.seed_of(m)), "bag": _bool(plan.save and config.bag),
         "save_data": _bool(plan.save), "output": config.output, "mission": i.mission, "submission": i.submission,
-        "n_simulation": str(m),
+        "n_simulation": str(m), "button_timeout": f"{config.button_timeout:g}",
     }
     argv = []
     for arg in config.launch_command:

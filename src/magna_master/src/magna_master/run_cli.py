@@ -76,6 +76,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                           help="if the dataset has simulations: delete and rewrite the ones run again")
     conflict.add_argument("--skip-save", dest="policy", action="store_const", const=storage.SKIP_SAVE,
                           help="if the dataset has simulations: run without saving anything")
+    parser.add_argument("--button-timeout", type=float, default=10.0, metavar="SECONDS",
+                        help="a mission's wait for the operator's button goes on after this many simulated "
+                             "seconds, since nobody presses it in a batch (default 10; 0: wait for "
+                             "rosservice call /magna/gs/continue)")
     parser.add_argument("--time-limit", type=float, default=600.0, metavar="SECONDS",
                         help="wall-clock seconds per simulation before the ground station is stopped "
                              "(default: 600; 0: none)")
@@ -104,7 +108,8 @@ def build_config(args):
     return BatchConfig(inputs=inputs, n_iter=args.n_iter, name=args.name, n_dataset=args.dataset, rtf=args.rtf,
                        seed=args.seed, bag=not args.no_bag, save_data=not args.no_data,
                        data_root=args.data_root, policy=args.policy,
-                       time_limit=args.time_limit or None, launch_command=command)
+                       time_limit=args.time_limit or None, button_timeout=args.button_timeout,
+                       launch_command=command)
 
 
 def run(args) -> int:
@@ -119,9 +124,39 @@ def run(args) -> int:
     except (BatchError, storage.StorageError) as err:
         raise UsageError(str(err)) from None
     print(format_summary(result), flush=True)
+    if result.dataset_dir is not None and result.dataset_dir.is_dir() and not result.interrupted:
+        pictures = draw_pictures(config, result.dataset_dir)
+        if pictures:
+            print("pictures: " + ", ".join(str(p) for p in pictures), flush=True)
     if result.interrupted:
         return 130
     return 1 if result.failed_to_run else 0
+
+
+def draw_pictures(config, folder: Path) -> list[Path]:
+    """The world and the mission's state machine, drawn once per dataset (kept if already there)."""
+    made = []
+    world_png, mission_png = folder / "world.png", folder / "mission.png"
+    try:
+        if not world_png.exists():
+            from magna_worlds.draw import draw_world
+            from magna_worlds.generate import resolve_world
+            from magna_worlds.loader import load_world
+
+            draw_world(resolve_world(load_world(config.inputs.world_file), config.seed), world_png)
+        made.append(world_png)
+        if not mission_png.exists():
+            from magna_gs.mission.build import InertFactory, build_machine
+            from magna_gs.mission.loader import load_mission
+            from magna_sm.draw import draw
+
+            loaded = load_mission(config.inputs.mission_file)
+            draw(build_machine(loaded.mission, InertFactory(), loaded.plan), mission_png,
+                 title=config.inputs.mission_file.stem, show_active=False)
+        made.append(mission_png)
+    except Exception as error:  # pictures help; their failure must not hide the batch's result
+        print(f"magna run: could not draw the pictures: {error}", file=sys.stderr)
+    return made
 
 
 def node_main(argv: list[str] | None = None) -> int:

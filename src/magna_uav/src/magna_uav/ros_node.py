@@ -275,6 +275,7 @@ class UavManagerNode:
         """Hover and watch until a goal (or a die request) arrives."""
         self.reporter.report("idle")
         self.manager.hover()
+        idle_event = ""  # the critical event being reported while idle
         while True:
             order = self.desk.take(timeout=1.0 / self.settings.control_rate)
             if self.desk.dying or rospy.is_shutdown():
@@ -284,9 +285,12 @@ class UavManagerNode:
                 return order.action
             with self.data.lock:
                 evaluation = self.evaluator.step(self.view, bool(self._critical_seen)) if self.view.has_own else None
-            if evaluation is not None and evaluation.outcome in ("collision", "low_battery"):
-                rospy.logwarn_throttle(5, f"UAV {self.uav_id} while idle: {evaluation.reason}")
-                self.reporter.report("idle", evaluation.outcome)
+            event = evaluation.outcome if evaluation is not None and evaluation.outcome in ("collision",
+                                                                                              "low_battery") else ""
+            if event and event != idle_event:  # once per episode, not every control step
+                rospy.logwarn(f"UAV {self.uav_id} while idle: {evaluation.reason}")
+                self.reporter.report("idle", event)
+            idle_event = event
 
     def _fly(self, ud, action: str) -> str:
         order = self.pending
