@@ -212,7 +212,14 @@ class ActionClients:
             if key not in self._clients:
                 spec = getattr(actions, ACTION_TYPES[action] + "Action")
                 client = SimpleActionClient(f"/magna/uav_{uav_id}/{action}", spec)
-                if not client.wait_for_server(rospy.Duration(self.wait)):
+                # Wall time: a manager takes seconds to start, and under rtf max a minute of
+                # simulated time passes in a few of them.
+                deadline = time.monotonic() + self.wait
+                while not client.wait_for_server(rospy.Duration(0.05)) and time.monotonic() < deadline:
+                    if rospy.is_shutdown():
+                        break
+                if not client.wait_for_server(rospy.Duration(0.01)):
+                    client.stop()
                     raise RuntimeError(f"UAV {uav_id}: no action server /magna/uav_{uav_id}/{action} within "
                                        f"{self.wait:g} s; did its manager start?")
                 self._clients[key] = client

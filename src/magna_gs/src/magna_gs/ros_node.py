@@ -419,19 +419,20 @@ class GroundStation:
         """Save, stop the managers, delete models and obstacles, close the bag, tell the Master."""
         rospy.loginfo(f"finishing: {message} after {duration:.1f} s of sim time")
         services = self.services
+        steps = []
         if self.save_data and self.data_dir and services.spawned:
-            services.save_csv(list(services.spawned))
+            steps.append(("saving the CSVs", lambda: services.save_csv(list(services.spawned))))
         if self.data_dir:
-            write_atomically(self.data_dir / "mission.json", lambda f: f.write(self.mission_file.read_text()),
-                             overwrite=True)
-        services.stop_managers()
-        services.delete_uavs()
-        services.delete_world()
-        if self.bag is not None:
-            end_group(self.bag, grace=10.0)
-            active = self.data_dir / "simulation.bag.active"
-            if active.exists():
-                shutil.move(active, self.data_dir / "simulation.bag")
+            steps.append(("copying the mission", lambda: write_atomically(
+                self.data_dir / "mission.json", lambda f: f.write(self.mission_file.read_text()), overwrite=True)))
+        steps += [("stopping the UAV managers", services.stop_managers), ("deleting the UAVs", services.delete_uavs),
+                  ("deleting the world", services.delete_world), ("closing the bag", self._close_bag)]
+        for what, step in steps:  # every step runs, and the Master hears of the end whatever fails
+            try:
+                step()
+            except Exception as error:
+                rospy.logerr(f"finishing: {what} failed: {error}")
+                message += f"; {what} failed: {error}"
         with self.lock:
             # one report per UAV per contact: two UAVs touching once count 2
             collisions = sum(1 for _, event in self.critical_events if event == "collision")
@@ -441,6 +442,14 @@ class GroundStation:
             message += "; critical events: " + ", ".join(f"UAV {i} {e}" for i, e in events)
         self._report(success, outcome, message, duration, collisions)
         self.introspection.stop()
+
+    def _close_bag(self) -> None:
+        if self.bag is None:
+            return
+        end_group(self.bag, grace=10.0)
+        active = self.data_dir / "simulation.bag.active"
+        if active.exists():
+            shutil.move(active, self.data_dir / "simulation.bag")
 
     def _report(self, success, outcome, message, duration, collisions) -> None:
         name = "/magna/master/simulation_termination"
