@@ -50,7 +50,7 @@ def test_moves_that_leave_the_world_are_refused_with_the_reason():
     (("basic_action", "follow", "1", Param("target", 1)), "cannot follow itself"),
     (("basic_action", "follow", "1", Param("target", 5)), "UAV 5 to follow is not in this mission"),
     (("algorithms", "set", "1", Param("algorithm", text="magic")), "parameter 'algorithm' is 'magic'"),
-    (("mission", "pause", "all"), "give standby or resume"),
+    (("mission", "pause", "all"), "give standby, resume, critical"),
     (("parameters", "get", "1", Param("altitude")), "cannot tell 'altitude'"),
     (("chat", "hello", "1"), "intent 'chat' is unknown"),
 ])
@@ -71,3 +71,4 @@ def test_algorithm_and_mission_commands():
     assert plan("algorithms", "set", "all", Param("algorithm", text="orca3")).algorithm == ("orca3", [1, 2])
     assert plan("mission", "standby", "all").mission == "standby"
     assert plan("mission", "resume", "").mission == "resume"
+    assert plan("mission", "critical", "all").mission == "critical"

@@ -249,3 +249,16 @@ def test_set_mission_refuses_bad_missions_with_the_reason(text, reason):
     config = configs_from_mission(AGENTS[:1], "test")[0]
     with pytest.raises(ValueError, match=reason):
         mission_role(text, config)
+
+
+def test_a_short_basic_move_from_the_ground_station_is_flown_all_the_way():
+    from types import SimpleNamespace
+
+    from magna_uav.goals import role_from_goal
+
+    manager, world, uavs, recorder, config = setup([[0, 0, 0]])
+    take_off(manager, uavs)
+    start = uavs[0].position.copy()
+    goal = SimpleNamespace(move_type="translation", direction="up", value=1.0, dynamic="position", duration=0.0)
+    assert fly(manager, role_from_goal("basic_move", goal, config)).outcome == "succeeded"
+    assert uavs[0].position[2] - start[2] >= 0.8, "not stopped within the 0.9 m a path's waypoint allows"

@@ -19,6 +19,9 @@ INTENTS = ("basic_action", "mission", "parameters", "algorithms")
 DIRECTIONS = {"up", "down", "left", "right", "forward", "backward", "x", "y", "z"}
 ALGORITHMS = ("simple", "orca3", "orca3d", "neural_network")
 QUERIES = ("battery", "state", "position")
+# standby pauses the mission and resume goes on; critical raises the operator's critical event (every
+# running role ends GS_critical_event and the mission takes its safety branches) until a resume.
+MISSION_ACTIONS = ("standby", "resume", "critical")
 DEFAULT_FOLLOW_DISTANCE = 2.0  # m
 
 
@@ -59,7 +62,7 @@ class ActionOrder:
 class CommandPlan:
     orders: list[ActionOrder] = field(default_factory=list)
     algorithm: tuple[str, list[int]] | None = None  # (name, uav ids)
-    mission: str | None = None  # "standby" or "resume"
+    mission: str | None = None  # one of MISSION_ACTIONS
     answers: list[Param] = field(default_factory=list)
     message: str = ""
 
@@ -70,8 +73,8 @@ def plan_command(intent: str, action: str, agent: str, params: Sequence[Param], 
     intent, action = intent.strip(), action.strip()
     by_name = {p.name: p for p in params}
     if intent == "mission":
-        if action not in ("standby", "resume"):
-            raise CommandRefused(f"mission action {action!r} is unknown: give standby or resume")
+        if action not in MISSION_ACTIONS:
+            raise CommandRefused(f"mission action {action!r} is unknown: give {', '.join(MISSION_ACTIONS)}")
         return CommandPlan(mission=action, message=f"mission {action}")
     if intent not in INTENTS:
         raise CommandRefused(f"intent {intent!r} is unknown: give one of {', '.join(INTENTS)}")

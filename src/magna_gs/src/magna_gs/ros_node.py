@@ -59,7 +59,7 @@ them all. UAV managers are started by the mission's spawn_agents state.
 
 Services: /magna/gs/state_actualization (StateActualization, from the UAV managers)
           /magna/gs/command (GroundStationCommand: take_off, land, move, turn, follow, get,
-                             set algorithm, mission standby/resume; every request checked)
+                             set algorithm, mission standby/resume/critical; every request checked)
           /magna/gs/stop (std_srvs/Trigger: end the mission now, then finish as usual)
           /magna/gs/continue (std_srvs/Trigger: the operator's button for `wait` states)
 Topics:   /magna/gs/critical_event (std_msgs/String) to every UAV manager
@@ -373,7 +373,10 @@ class GroundStation:
     def _execute(self, plan: CommandPlan) -> None:
         if plan.mission == "standby":
             self.services.paused.set()
+        elif plan.mission == "critical":
+            self.critical.publish(String("operator"))
         elif plan.mission == "resume":
+            self.critical.publish(String(""))
             self.services.paused.clear()
             self.services.button.set()
         if plan.algorithm:

@@ -34,8 +34,10 @@ def role_from_goal(action: str, goal, config: UavConfig) -> Role:
         if move_type == "land":
             return LandRole(duration=goal.duration)
         # The original compared move_type == ("translation" or "rotation"), so rotation never ran.
+        # A short move needs a tighter arrival than a path's waypoints: a fifth of the move, at least 0.1 m.
+        accepted = min(config.accepted_target_radius, max(0.1, 0.2 * abs(goal.value)))
         return BasicMoveRole(move_type, goal.direction, goal.value, goal.dynamic or "position", goal.duration,
-                             accepted_radius=config.accepted_target_radius)
+                             accepted_radius=accepted)
     if action == "follow_path":
         waypoints = [(p.pose.position.x, p.pose.position.y, p.pose.position.z) for p in goal.path]
         return FollowPathRole(waypoints, config.accepted_target_radius, goal.smooth_path_mode,
