@@ -4,10 +4,12 @@ moves fly, bad requests are refused with the reason, and resume lets the mission
 The project's Safe_Stop mission waits for the operator's button after reaching its stations;
 the test drives it there through the whole stack (simulation.launch on a private master).
 """
+import os
 import subprocess
+import sys
 import time
+from pathlib import Path
 
-import numpy as np
 import pytest
 
 from tests.support import ROOT
@@ -23,55 +25,62 @@ def wall_wait(predicate, what, seconds=120.0):
         time.sleep(0.05)
 
 
-def test_operator_commands_on_a_running_mission(fresh_ros_master, tmp_path):
-    import os
-
-    master = fresh_ros_master
-    launch = master.spawn(["roslaunch", "magna_gs", "simulation.launch",
-                           f"mission_file:={ROOT / 'missions/Gym/Safe_Stop.json'}", "world:=Gym",
-                           "subworld:=Central_Obstacle_Torus", f"data_dir:={tmp_path}", "rtf:=max", "bag:=false",
-                           "button_timeout:=0"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    os.environ.update(master.env())
+def operator_session(data_dir: Path) -> None:
+    """The operator's side, in a process of its own (rospy allows one node per process, and the
+    pytest process already has one on another master)."""
     import rospy
     from geometry_msgs.msg import PoseStamped
     from magna_msgs.msg import NamedValue, SMStatus
     from magna_msgs.srv import GroundStationCommand
 
     rospy.init_node("operator", anonymous=True, disable_signals=True)
-    try:
-        seen = {"states": [], "z": None}
-        rospy.Subscriber("/magna/sm/mission/status", SMStatus,
-                         lambda msg: seen["states"].extend(msg.active_states) if msg.path == "/MISSION" else None)
-        rospy.Subscriber("/uav_1/ual/pose", PoseStamped, lambda msg: seen.update(z=msg.pose.position.z))
-        wall_wait(lambda: "operator_wait" in seen["states"], "the mission to wait for the operator")
-        rospy.wait_for_service("/magna/gs/command", timeout=10.0)
-        command = rospy.ServiceProxy("/magna/gs/command", GroundStationCommand)
+    seen = {"states": [], "z": None}
+    rospy.Subscriber("/magna/sm/mission/status", SMStatus,
+                     lambda msg: seen["states"].extend(msg.active_states) if msg.path == "/MISSION" else None)
+    rospy.Subscriber("/uav_1/ual/pose", PoseStamped, lambda msg: seen.update(z=msg.pose.position.z))
+    wall_wait(lambda: "operator_wait" in seen["states"], "the mission to wait for the operator")
+    rospy.wait_for_service("/magna/gs/command", timeout=10.0)
+    command = rospy.ServiceProxy("/magna/gs/command", GroundStationCommand)
 
-        def ask(intent, action, agent, **params):
-            values = [NamedValue(name=k, number=v if isinstance(v, float | int) else 0.0,
-                                 text=v if isinstance(v, str) else "", unit={"distance": "m", "height": "m"}.get(k, ""))
-                      for k, v in params.items()]
-            return command(intent=intent, action=action, agent=agent, parameters=values)
+    def ask(intent, action, agent, **params):
+        values = [NamedValue(name=k, number=v if isinstance(v, float | int) else 0.0,
+                             text=v if isinstance(v, str) else "", unit={"distance": "m"}.get(k, ""))
+                  for k, v in params.items()]
+        return command(intent=intent, action=action, agent=agent, parameters=values)
 
-        battery = ask("parameters", "get", "all", battery="")
-        assert battery.accepted, battery.message
-        levels = {v.name: v.number for v in battery.values}
-        assert set(levels) == {"uav_1.battery", "uav_2.battery"} and all(0 < x <= 100 for x in levels.values())
+    battery = ask("parameters", "get", "all", battery="")
+    assert battery.accepted, battery.message
+    levels = {v.name: v.number for v in battery.values}
+    assert set(levels) == {"uav_1.battery", "uav_2.battery"} and all(0 < x <= 100 for x in levels.values()), levels
 
-        refused = ask("basic_action", "land", "7")
-        assert not refused.accepted and "UAV 7 is not in this mission" in refused.message
-        too_high = ask("basic_action", "move", "1", direction="up", distance=100.0)
-        assert not too_high.accepted and "would leave the world" in too_high.message
+    refused = ask("basic_action", "land", "7")
+    assert not refused.accepted and "UAV 7 is not in this mission" in refused.message, refused.message
+    too_high = ask("basic_action", "move", "1", direction="up", distance=100.0)
+    assert not too_high.accepted and "would leave the world" in too_high.message, too_high.message
 
-        start = seen["z"]
-        moved = ask("basic_action", "move", "1", direction="up", distance=1.0)
-        assert moved.accepted, moved.message
-        wall_wait(lambda: seen["z"] is not None and seen["z"] > start + 0.8, "UAV 1 to climb 1 m", 60.0)
+    start = seen["z"]
+    moved = ask("basic_action", "move", "1", direction="up", distance=1.0)
+    assert moved.accepted, moved.message
+    wall_wait(lambda: seen["z"] is not None and seen["z"] > start + 0.8, "UAV 1 to climb 1 m", 60.0)
 
-        resumed = ask("mission", "resume", "all")
-        assert resumed.accepted
-        launch.wait(120)  # the ground station finishes the mission and the launch ends with it
-        assert (tmp_path / "uav_1.csv").is_file() and (tmp_path / "uav_2.csv").is_file()
-        assert np.isfinite(start)
-    finally:
-        rospy.signal_shutdown("test done")
+    assert ask("mission", "resume", "all").accepted
+    rospy.signal_shutdown("operator done")
+
+
+def test_operator_commands_on_a_running_mission(fresh_ros_master, tmp_path):
+    master = fresh_ros_master
+    launch = master.spawn(["roslaunch", "magna_gs", "simulation.launch",
+                           f"mission_file:={ROOT / 'missions/Gym/Safe_Stop.json'}", "world:=Gym",
+                           "subworld:=Central_Obstacle_Torus", f"data_dir:={tmp_path}", "rtf:=5", "bag:=false",
+                           "button_timeout:=0"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    env = master.env()
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH", "")]))
+    operator = subprocess.run([sys.executable, __file__, str(tmp_path)], env=env, capture_output=True,
+                              text=True, timeout=240, cwd=ROOT)
+    assert operator.returncode == 0, operator.stdout[-3000:] + operator.stderr[-3000:]
+    launch.wait(120)  # resumed: the ground station finishes the mission and the launch ends with it
+    assert (tmp_path / "uav_1.csv").is_file() and (tmp_path / "uav_2.csv").is_file()
+
+
+if __name__ == "__main__":
+    operator_session(Path(sys.argv[1]))
