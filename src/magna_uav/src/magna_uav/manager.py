@@ -141,6 +141,12 @@ class UavManager:
             raise ValueError(f"role step action {step.action!r} is unknown")
         return np.zeros(3), "ual", None
 
+    def keep_hovering(self) -> None:
+        """Send the held pose again: a velocity command still in flight on another topic when the
+        hover began would otherwise carry the UAV away for its timeout."""
+        if self._hold is not None and self.view.has_own and self.view.own.ual_state == FLYING_AUTO:
+            self.commander.hold_pose(*self._hold)
+
     def _hover(self) -> None:
         # Only a flying UAV can hold a pose (UAL refuses set_pose on the ground, during take-off or landing).
         if not self.view.has_own or self.view.own.ual_state != FLYING_AUTO:

@@ -283,6 +283,7 @@ class UavManagerNode:
             if order is not None:
                 self.pending = order
                 return order.action
+            self.manager.keep_hovering()
             with self.data.lock:
                 evaluation = self.evaluator.step(self.view, bool(self._critical_seen)) if self.view.has_own else None
             event = evaluation.outcome if evaluation is not None and evaluation.outcome in ("collision",
