@@ -31,6 +31,7 @@ from uav_abstraction_layer.srv import (
 
 from . import geo
 from .command_queue import CommandQueue, LoopStopped
+from .streams import stream_publisher
 from .ual_logic import CommandRefused, UalLogic, UalState
 from .vehicle import yaw_from_quaternion
 
@@ -60,10 +61,10 @@ class UalServer:
         self.base_frame = f"uav_{uav_id}/base_link"
         self.home_frame = f"uav_{uav_id}_home"
         ns = f"/uav_{uav_id}/ual/"
-        self._pose_pub = rospy.Publisher(ns + "pose", PoseStamped, queue_size=1)
-        self._velocity_pub = rospy.Publisher(ns + "velocity", TwistStamped, queue_size=1)
-        self._odom_pub = rospy.Publisher(ns + "odom", Odometry, queue_size=1)
-        self._state_pub = rospy.Publisher(ns + "state", State, queue_size=1)
+        self._pose_pub = stream_publisher(ns + "pose", PoseStamped)
+        self._velocity_pub = stream_publisher(ns + "velocity", TwistStamped)
+        self._odom_pub = stream_publisher(ns + "odom", Odometry)
+        self._state_pub = stream_publisher(ns + "state", State)
         self._subscribers = [rospy.Subscriber(ns + "set_pose", PoseStamped, self._on_set_pose, queue_size=1),
                              rospy.Subscriber(ns + "set_velocity", TwistStamped, self._on_set_velocity,
                                               queue_size=1)]
