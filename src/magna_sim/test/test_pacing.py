@@ -3,7 +3,7 @@ import math
 
 import pytest
 
-from magna_sim.pacing import Pacer, parse_real_time_factor
+from magna_sim.pacing import Hold, Pacer, parse_real_time_factor
 
 
 @pytest.mark.parametrize("value, expected", [(1.0, 1.0), ("10", 10.0), ("max", math.inf), (0, math.inf),
@@ -47,3 +47,22 @@ def test_as_fast_as_possible_never_sleeps():
     for t in range(100):
         pacer.wait(t)
     assert clock.slept == []
+
+
+def test_restart_forgets_the_time_spent_paused():
+    clock = FakeClock()
+    pacer = Pacer(2.0, clock=clock, sleep=clock.sleep)
+    pacer.wait(0.0)
+    clock.now += 0.3  # a pause shorter than the lag limit: without restart the loop would sprint
+    pacer.restart()
+    pacer.wait(0.0)
+    pacer.wait(1.0)  # 1 s of sim at 2x: 0.5 s of wall after the restart
+    assert clock.slept == [pytest.approx(0.5)]
+
+
+def test_hold_counts_changes_and_says_what_happened():
+    hold = Hold(paused=True)
+    assert hold.paused and hold.changes == 0
+    assert hold.set(True, 1.0) == "already paused at t=1.000 s" and hold.changes == 0
+    assert hold.set(False, 1.0) == "resumed at t=1.000 s" and not hold.paused and hold.changes == 1
+    assert hold.set(True, 2.5) == "paused at t=2.500 s" and hold.paused and hold.changes == 2

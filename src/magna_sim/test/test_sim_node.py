@@ -108,3 +108,36 @@ def test_depth_camera_publishes_metric_images(fresh_ros_master):
     # UAV 1 stands at (0, -1, 0) looking along +x; above the horizon (row 6) it sees the wall face at x = 2.5.
     assert out.stdout.split() == ["32FC1", "32", "24", "True", "2.5"], out.stderr
     assert node.poll() is None
+
+
+def test_pause_stops_simulated_time_but_not_spawning_or_the_ual_topics(fresh_ros_master):
+    node = start_sim(fresh_ros_master, "_start_paused:=true")
+    script = (
+        "import rospy, time\n"
+        "from geometry_msgs.msg import PoseStamped\n"
+        "from rosgraph_msgs.msg import Clock\n"
+        "from std_srvs.srv import SetBool\n"
+        "from magna_msgs.srv import SpawnModel, SpawnModelRequest\n"
+        "rospy.init_node('pause_probe')\n"
+        "def clock():\n"
+        "    return rospy.wait_for_message('/clock', Clock, timeout=30).clock.to_sec()\n"
+        "rospy.wait_for_service('/magna/sim/pause', timeout=30)\n"
+        "pause = rospy.ServiceProxy('/magna/sim/pause', SetBool)\n"
+        "first = clock(); time.sleep(1.0); still = clock()\n"
+        "pose = rospy.wait_for_message('/uav_2/ual/pose', PoseStamped, timeout=30)\n"
+        "uav = SpawnModelRequest(name='uav_3', kind='uav', uav_id=3)\n"
+        "uav.pose.position.x, uav.pose.orientation.w = 4.0, 1.0\n"
+        "spawned = rospy.ServiceProxy('/magna/sim/spawn_model', SpawnModel)(uav).success\n"
+        "third = rospy.wait_for_message('/uav_3/ual/pose', PoseStamped, timeout=30).pose.position.x\n"
+        "resumed = pause(data=False).message\n"
+        "time.sleep(1.0); running = clock()\n"
+        "paused = pause(data=True).message\n"
+        "frozen = clock(); time.sleep(1.0); after = clock()\n"
+        "print(first == still, pose.header.stamp.to_sec() == first, spawned, third,\n"
+        "      resumed.startswith('resumed'), running > still + 1.0, paused.startswith('paused'),\n"
+        "      after == frozen)\n")
+    out = subprocess.run(["python", "-c", script], capture_output=True, text=True, timeout=120,
+                         env=fresh_ros_master.env())
+    # paused: the clock stands, poses come with the frozen time, a UAV spawns; resumed: it runs (rtf 5)
+    assert out.stdout.split() == ["True", "True", "True", "4.0", "True", "True", "True", "True"], out.stderr
+    assert node.poll() is None

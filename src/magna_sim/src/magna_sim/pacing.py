@@ -34,6 +34,10 @@ class Pacer:
         self._wall_start = None
         self._sim_start = 0.0
 
+    def restart(self) -> None:
+        """Forget the past: the next `wait` starts a new reference (after a pause, for instance)."""
+        self._wall_start = None
+
     def wait(self, sim_time: float) -> None:
         if math.isinf(self.factor):
             return
@@ -46,3 +50,28 @@ class Pacer:
             self._sleep(due - now)
         elif now - due > self.MAX_LAG:
             self._wall_start, self._sim_start = now, sim_time
+
+
+class Hold:
+    """Whether the simulation is paused: time stands still while nodes start and UAVs are spawned.
+
+    Set from service threads, read by the simulation loop. Each change is counted so that the
+    loop can tell that a pause happened between two of its looks (and restart its pacing).
+    """
+
+    def __init__(self, paused: bool = False):
+        self._paused = bool(paused)
+        self.changes = 0
+
+    @property
+    def paused(self) -> bool:
+        return self._paused
+
+    def set(self, paused: bool, sim_time: float) -> str:
+        """Pause (True) or resume (False); say what happened, at which simulated time."""
+        paused = bool(paused)
+        if paused == self._paused:
+            return f"already {'paused' if paused else 'running'} at t={sim_time:.3f} s"
+        self._paused = paused
+        self.changes += 1
+        return f"{'paused' if paused else 'resumed'} at t={sim_time:.3f} s"

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -18,12 +19,14 @@ from magna_msgs.msg import CollisionEvent
 from magna_msgs.srv import DeleteModel, DeleteModelResponse, SpawnModel, SpawnModelResponse
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import BatteryState, CameraInfo, Image
+from std_srvs.srv import SetBool, SetBoolResponse
 from tf2_msgs.msg import TFMessage
 
 from .command_queue import CommandQueue
 from .depth_camera import DepthCamera
-from .pacing import Pacer, parse_real_time_factor
+from .pacing import Hold, Pacer, parse_real_time_factor
 from .ros_ual import MAP_FRAME, UalServer, quaternion_yaw
+from .streams import stream_publisher
 from .ual_logic import UalSettings
 from .world import SimWorld, SpawnError
 
@@ -34,8 +37,11 @@ land, go_to_waypoint, go_to_waypoint_geo, set_home, recover_from_manual).
 
 Also: /clock, tf map -> uav_{id}/base_link, /magna/sim/collisions (magna_msgs/CollisionEvent),
 /uav_{id}/mavros/battery (sensor_msgs/BatteryState), optional depth images on
-/uav_{id}/camera/depth/image_raw, and the services /magna/sim/spawn_model and
-/magna/sim/delete_model.
+/uav_{id}/camera/depth/image_raw, and the services /magna/sim/spawn_model,
+/magna/sim/delete_model and /magna/sim/pause (std_srvs/SetBool: true pauses, false resumes).
+While paused, simulated time stands still; spawning and deleting still work, and /clock
+and the UAL topics are re-sent pub_rate times per wall second with the time frozen, so
+that nodes starting meanwhile learn the time and the poses.
 
 Private parameters (defaults):
   ~uavs (0)              UAVs 1..N spawned at start, side by side along y near the origin
@@ -46,6 +52,7 @@ Private parameters (defaults):
   ~real_time_factor (1)  1 = real time, 10 = ten times faster, max (or 0) = as fast as possible
   ~pub_rate (30)         UAL topics and tf per simulated second
   ~clock_rate (100)      /clock messages per simulated second
+  ~start_paused (false)  start with simulated time standing still until /magna/sim/pause false
   ~seed (none)           seed for wind and sensor noise: same seed, same run
   ~noise/position_std (0), ~noise/velocity_std (0), ~wind_std (0, N, dynamic model only)
   ~map_origin_geo ([])   [lat, lon, alt] of the map origin, for go_to_waypoint_geo
@@ -84,6 +91,7 @@ class NodeSettings:
     camera: dict
     ual: UalSettings
     ground_impact_speed: float
+    start_paused: bool = False
 
     @classmethod
     def from_params(cls) -> NodeSettings:
@@ -113,7 +121,8 @@ class NodeSettings:
             ual=UalSettings(position_th=float(rospy.get_param("~position_th", 0.33)),
                             orientation_th=float(rospy.get_param("~orientation_th", 0.65)),
                             velocity_timeout=float(rospy.get_param("~velocity_timeout", 1.0))),
-            ground_impact_speed=float(rospy.get_param("~ground_impact_speed", 1.0)))
+            ground_impact_speed=float(rospy.get_param("~ground_impact_speed", 1.0)),
+            start_paused=_as_bool("~start_paused", rospy.get_param("~start_paused", False)))
         for name in ("physics_rate", "pub_rate", "clock_rate", "battery_rate"):
             value = getattr(settings, name)
             if not (math.isfinite(value) and value > 0):
@@ -121,6 +130,18 @@ class NodeSettings:
         if settings.uavs < 0:
             raise ValueError(f"~uavs: {settings.uavs} must be 0 or more")
         return settings
+
+
+def _as_bool(name: str, value) -> bool:
+    """A boolean parameter given as a bool or as the text true/false (launch files may pass either)."""
+    if isinstance(value, bool):
+        return value
+    text = str(value).strip().lower()
+    if text in ("true", "1", "yes"):
+        return True
+    if text in ("false", "0", "no", ""):
+        return False
+    raise ValueError(f"{name}: {value!r} must be true or false")
 
 
 def _own_the_clock() -> Callable[[rospy.Time], None] | None:
@@ -172,14 +193,16 @@ class SimNode:
         self.cameras: dict[int, tuple[rospy.Publisher, rospy.Publisher]] = {}
         self._camera = DepthCamera(self.world.client, settings.camera["width"], settings.camera["height"],
                                    settings.camera["fov"]) if settings.camera["enabled"] else None
-        self._clock_pub = rospy.Publisher("/clock", Clock, queue_size=10)
-        self._tf_pub = rospy.Publisher("/tf", TFMessage, queue_size=100)
+        self._clock_pub = stream_publisher("/clock", Clock)
+        self._tf_pub = stream_publisher("/tf", TFMessage)
         self._collision_pub = rospy.Publisher("/magna/sim/collisions", CollisionEvent, queue_size=100)
         self._battery_pubs: dict[int, rospy.Publisher] = {}
         for i, position in enumerate(initial_positions(settings.uavs, settings.spacing), start=1):
             self.spawn_uav(f"uav_{i}", i, settings.model, settings.flight_model, position, 0.0)
+        self.hold = Hold(settings.start_paused)
         self._services = [rospy.Service("/magna/sim/spawn_model", SpawnModel, self._on_spawn),
-                          rospy.Service("/magna/sim/delete_model", DeleteModel, self._on_delete)]
+                          rospy.Service("/magna/sim/delete_model", DeleteModel, self._on_delete),
+                          rospy.Service("/magna/sim/pause", SetBool, self._on_pause)]
 
     # --- models (simulation thread) --------------------------------------------------------------------------
     def spawn_uav(self, name, uav_id, airframe, flight_model, position, yaw, rgba=(0.2, 0.2, 0.25, 1.0)):
@@ -241,6 +264,11 @@ class SimNode:
         return DeleteModelResponse(*self._answer("delete_model", lambda: f"deleted {self.delete(req.name)} "
                                                                          f"'{req.name}'"))
 
+    def _on_pause(self, req):
+        message = self.hold.set(req.data, self.world.time)
+        rospy.loginfo(f"/magna/sim/pause: {message}")
+        return SetBoolResponse(success=True, message=message)
+
     def _answer(self, service: str, action) -> tuple[bool, str]:
         try:
             message = self.queue.run(action)
@@ -259,9 +287,16 @@ class SimNode:
         camera = _Schedule(settings.camera["rate"]) if self._camera is not None else None
         clock_msg = Clock()
         set_own_time = _own_the_clock()
+        changes = self.hold.changes
         try:
             while not rospy.is_shutdown():
                 self.queue.run_pending()
+                if self.hold.paused:
+                    self._stand_still(clock_msg, set_own_time)
+                    continue
+                if changes != self.hold.changes:  # resumed: pace from here, not from before the pause
+                    changes = self.hold.changes
+                    pacer.restart()
                 contacts = self.world.step()
                 self.queue.check_waiters()
                 now = self.world.time
@@ -284,6 +319,19 @@ class SimNode:
         finally:
             self.shutdown()
 
+    def _stand_still(self, clock_msg: Clock, set_own_time) -> None:
+        """One wall period of a pause: re-send the frozen time and the poses, carry out commands meanwhile."""
+        stamp = rospy.Time.from_sec(self.world.time)
+        clock_msg.clock = stamp
+        self._clock_pub.publish(clock_msg)
+        if set_own_time is not None:
+            set_own_time(stamp)
+        self._publish_ual(stamp, tf=False)  # tf listeners complain about repeated stamps
+        deadline = time.monotonic() + 1.0 / self.settings.pub_rate
+        while self.hold.paused and not rospy.is_shutdown() and time.monotonic() < deadline:
+            self.queue.run_pending()
+            time.sleep(0.002)
+
     def shutdown(self) -> None:
         self.queue.stop("magna_sim is shutting down")
         for uav_id in list(self.servers):
@@ -294,9 +342,9 @@ class SimNode:
         self.world.close()
 
     # --- publishing ------------------------------------------------------------------------------------------
-    def _publish_ual(self, stamp) -> None:
+    def _publish_ual(self, stamp, tf: bool = True) -> None:
         transforms = []
-        with_tf = self._tf_pub.get_num_connections() > 0
+        with_tf = tf and self._tf_pub.get_num_connections() > 0
         rng = self.world.rng
         for uav_id, server in self.servers.items():
             vehicle = self.world.vehicles[uav_id]
