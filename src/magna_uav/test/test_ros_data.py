@@ -5,6 +5,7 @@ import struct
 import numpy as np
 import pytest
 from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, TwistStamped, Vector3
+from nav_msgs.msg import Odometry
 from sensor_msgs.msg import BatteryState, Image
 from uav_abstraction_layer.msg import State
 from visualization_msgs.msg import Marker, MarkerArray
@@ -167,6 +168,41 @@ def test_an_agent_enters_the_view_at_its_first_pose_with_what_was_heard_before()
     assert view.nearest_agents()[0][1] == pytest.approx(math.sqrt(16 + 25 + 36) - 0.8)
 
 
+def odom(x, y, z, body_velocity, body_spin=(0.0, 0.0, 0.0), orientation=YAW_90, stamp=0.0):
+    msg = Odometry()
+    msg.header.frame_id, msg.child_frame_id = "map", "uav/base_link"
+    msg.header.stamp.secs, msg.header.stamp.nsecs = int(stamp), int(round(stamp % 1 * 1e9))
+    msg.pose.pose = Pose(position=Point(x, y, z), orientation=orientation)
+    msg.twist.twist.linear, msg.twist.twist.angular = Vector3(*body_velocity), Vector3(*body_spin)
+    return msg
+
+
+def test_odom_gives_pose_and_the_body_twist_turned_into_map():
+    view = WorldView(1)
+    data = WorldUpdater(view, [2], {1: 0.3, 2: 0.5})
+    data.on_odom(2, odom(4, 5, 6, body_velocity=(1.0, 0.0, 0.5), body_spin=(0.0, 0.0, 0.3), stamp=2.5))
+    a = view.agent(2)
+    np.testing.assert_allclose(a.position, [4, 5, 6])
+    # yawed 90 degrees: the body's x axis is map's y
+    np.testing.assert_allclose(a.velocity, [0.0, 1.0, 0.5], atol=1e-12)
+    assert (a.yaw, a.yaw_rate, a.stamp) == (pytest.approx(math.pi / 2), pytest.approx(0.3), 2.5)
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_odom_velocity_matches_the_rotation_matrix_for_any_attitude(seed):
+    rng = np.random.default_rng(seed)
+    q = rng.normal(size=4)
+    q *= 3.0 / np.linalg.norm(q)  # not unit: the rotation must not scale the velocity
+    body = rng.normal(size=3)
+    data = WorldUpdater(WorldView(1), [2], {1: 0.3, 2: 0.5})
+    data.on_odom(2, odom(0, 0, 0, body_velocity=body, orientation=Quaternion(*q)))
+    x, y, z, w = q / np.linalg.norm(q)
+    rotation = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                         [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                         [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+    np.testing.assert_allclose(data.view.agent(2).velocity, rotation @ body, atol=1e-12)
+
+
 def test_markers_fill_the_views_obstacles():
     view = WorldView(1)
     data = WorldUpdater(view, [], {1: 0.3})
@@ -196,12 +232,14 @@ def test_topics_fill_the_view(rospy_node):
 
     data = RosWorldData(view, [own, other], {own: 0.3, other: 0.4}, depth=True)
     try:
-        publisher(topics(other)["velocity"], TwistStamped).publish(twist(0, 1, 0, 0.1))
-        publisher(topics(other)["state"], State).publish(State(state=State.FLYING_AUTO))
-        wait_until(lambda: data.heard(other).ual_state == State.FLYING_AUTO, "the state of uav_92")
-        assert view.agent(other) is None
+        publisher(topics(own)["velocity"], TwistStamped).publish(twist(0, 1, 0, 0.1))
+        publisher(topics(own)["state"], State).publish(State(state=State.FLYING_AUTO))
+        wait_until(lambda: data.heard(own).ual_state == State.FLYING_AUTO, "the state of uav_91")
+        assert not view.has_own
+        # the other UAV's topics other than odom are not listened to
+        publisher(topics(other)["pose"], PoseStamped).publish(pose(9, 9, 9, stamp=3.0))
         publisher(topics(own)["pose"], PoseStamped).publish(pose(1, 0, 2, stamp=3.0))
-        publisher(topics(other)["pose"], PoseStamped).publish(pose(1, 3, 2, stamp=3.0))
+        publisher(topics(other)["odom"], Odometry).publish(odom(1, 3, 2, body_velocity=(1, 0, 0), stamp=3.0))
         publisher(topics(own)["battery"], BatteryState).publish(BatteryState(percentage=0.8))
         publisher(topics(own)["depth"], Image).publish(
             Image(height=1, width=2, encoding="32FC1", step=8, data=struct.pack("<2f", 2.5, 7.0)))
@@ -218,13 +256,14 @@ def test_topics_fill_the_view(rospy_node):
         with data.lock:
             (near, gap), = view.nearest_agents()
             assert near.id == other and gap == pytest.approx(3 - 0.7)
-            assert near.ual_state == State.FLYING_AUTO and near.velocity[1] == pytest.approx(1.0)
+            np.testing.assert_allclose(near.velocity, [0, 1, 0], atol=1e-12)  # body x of a UAV yawed 90 degrees
+            assert view.own.ual_state == State.FLYING_AUTO and view.own.velocity[1] == pytest.approx(1.0)
             np.testing.assert_array_equal(view.own.depth, [[2.5, 7.0]])
             (obstacle, obstacle_gap), = [(o, g) for o, g in view.nearest_obstacles() if o.name == "test91_box"]
             assert obstacle_gap == pytest.approx(3 - math.sqrt(3) - 0.3)
 
         data.close()
-        pubs[2].publish(pose(8, 0, 2, stamp=4.0))
+        pubs[3].publish(pose(8, 0, 2, stamp=4.0))
         rospy.sleep(0.3)
         np.testing.assert_allclose(view.own.position, [1, 0, 2])  # nothing heard after close()
     finally:

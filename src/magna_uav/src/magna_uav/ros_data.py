@@ -2,11 +2,20 @@
 
 Per UAV id it listens to the UAL API and the autopilot's battery:
 
+    own UAV:
     /uav_{id}/ual/pose                PoseStamped      position, orientation, stamp
-    /uav_{id}/ual/velocity            TwistStamped     linear velocity, yaw rate
+    /uav_{id}/ual/velocity            TwistStamped     linear velocity, yaw rate (map frame)
     /uav_{id}/ual/state               uav_abstraction_layer/State
     /uav_{id}/mavros/battery          sensor_msgs/BatteryState   percentage, 0..1 (NaN: unknown)
-    /uav_{id}/camera/depth/image_raw  sensor_msgs/Image 32FC1 (metres) or 16UC1 (mm); own UAV, when asked
+    /uav_{id}/camera/depth/image_raw  sensor_msgs/Image 32FC1 (metres) or 16UC1 (mm), when asked
+    every other UAV:
+    /uav_{id}/ual/odom                nav_msgs/Odometry  pose and twist (the twist in the body
+                                      frame, as UAL publishes it; turned into map here)
+
+Why odom for the others: with N UAVs every manager deserialises every message it subscribes
+to, N * (N - 1) per publishing period across the fleet for each topic per other UAV. One
+message that carries pose and velocity halves that; nothing reads another UAV's UAL state
+or battery (the evaluator, roles and recorder look at the own UAV's).
 
 and to the world node's latched /magna/world/markers, whose namespace "obstacles" becomes
 the view's obstacles (bounding spheres). A UAV enters the view at its first pose: what is
@@ -29,6 +38,7 @@ from collections.abc import Iterable
 
 import numpy as np
 from geometry_msgs.msg import PoseStamped, TwistStamped
+from nav_msgs.msg import Odometry
 from sensor_msgs.msg import BatteryState, Image
 from uav_abstraction_layer.msg import State
 from visualization_msgs.msg import Marker, MarkerArray
@@ -47,8 +57,9 @@ _MARKER_TYPES = {getattr(Marker, n): n for n in (
 def topics(agent_id: int) -> dict[str, str]:
     """The topics heard for one UAV."""
     base = f"/uav_{agent_id}"
-    return {"pose": f"{base}/ual/pose", "velocity": f"{base}/ual/velocity", "state": f"{base}/ual/state",
-            "battery": f"{base}/mavros/battery", "depth": f"{base}/camera/depth/image_raw"}
+    return {"pose": f"{base}/ual/pose", "velocity": f"{base}/ual/velocity", "odom": f"{base}/ual/odom",
+            "state": f"{base}/ual/state", "battery": f"{base}/mavros/battery",
+            "depth": f"{base}/camera/depth/image_raw"}
 
 
 # --- obstacle markers -------------------------------------------------------------------------------------------
@@ -162,6 +173,20 @@ def marker_obstacle(marker: Marker) -> Obstacle | None:
     return Obstacle(name, position + rotation @ local, radius + float(item))
 
 
+def _rotate_out_of_body(orientation_xyzw, vector) -> tuple[float, float, float]:
+    """A body-frame vector in map (R v, R from the unit quaternion), in plain floats: numpy is slower at this size."""
+    x, y, z, w = (float(c) for c in orientation_xyzw)
+    norm = math.sqrt(x * x + y * y + z * z + w * w)
+    if not math.isfinite(norm) or norm < 1e-9:
+        x, y, z, w = 0.0, 0.0, 0.0, 1.0
+    else:
+        x, y, z, w = x / norm, y / norm, z / norm, w / norm
+    vx, vy, vz = (float(c) for c in vector)
+    # R v = v + 2 q x (q x v + w v), q = (x, y, z)
+    tx, ty, tz = y * vz - z * vy + w * vx, z * vx - x * vz + w * vy, x * vy - y * vx + w * vz
+    return (vx + 2.0 * (y * tz - z * ty), vy + 2.0 * (z * tx - x * tz), vz + 2.0 * (x * ty - y * tx))
+
+
 def _rotation(x: float, y: float, z: float, w: float) -> np.ndarray:
     q = np.array([x, y, z, w], dtype=float)
     norm = float(np.linalg.norm(q))
@@ -228,6 +253,17 @@ class WorldUpdater:
         v = msg.twist.linear
         self._update(agent_id, velocity=(v.x, v.y, v.z), yaw_rate=float(msg.twist.angular.z))
 
+    def on_odom(self, agent_id: int, msg: Odometry, now: float = 0.0) -> None:
+        """Pose and velocity at once; the twist is in the body frame (child_frame_id), turned into map."""
+        p, q = msg.pose.pose.position, msg.pose.pose.orientation
+        orientation = (q.x, q.y, q.z, q.w)
+        linear, angular = msg.twist.twist.linear, msg.twist.twist.angular
+        velocity = _rotate_out_of_body(orientation, (linear.x, linear.y, linear.z))
+        spin = _rotate_out_of_body(orientation, (angular.x, angular.y, angular.z))
+        stamp = msg.header.stamp.to_sec() or now
+        self._update(agent_id, position=(p.x, p.y, p.z), orientation=orientation, velocity=velocity,
+                     yaw_rate=spin[2], stamp=stamp, pose=True)
+
     def on_state(self, agent_id: int, msg: State) -> None:
         self._update(agent_id, ual_state=int(msg.state))
 
@@ -269,18 +305,23 @@ class RosWorldData(WorldUpdater):
             self._subscribers.append(rospy.Subscriber(topic, msg_type, self._guard(handler, topic), callback_args=args,
                                                       queue_size=1, tcp_nodelay=True))
 
+        own = topics(view.own_id)
+        sub(own["pose"], PoseStamped, self._pose, view.own_id)
+        sub(own["velocity"], TwistStamped, self.on_velocity, view.own_id)
         for i in self.agent_ids:
-            t = topics(i)
-            sub(t["pose"], PoseStamped, self._pose, i)
-            sub(t["velocity"], TwistStamped, self.on_velocity, i)
-            sub(t["state"], State, self.on_state, i)
-            sub(t["battery"], BatteryState, self.on_battery, i)
+            if i != view.own_id:
+                sub(topics(i)["odom"], Odometry, self._odom, i)
+        sub(own["state"], State, self.on_state, view.own_id)
+        sub(own["battery"], BatteryState, self.on_battery, view.own_id)
         if depth:
-            sub(topics(view.own_id)["depth"], Image, self.on_depth, view.own_id)
+            sub(own["depth"], Image, self.on_depth, view.own_id)
         sub(markers_topic, MarkerArray, self._markers)
 
     def _pose(self, agent_id: int, msg: PoseStamped) -> None:
         self.on_pose(agent_id, msg, now=self._rospy.get_time())
+
+    def _odom(self, agent_id: int, msg: Odometry) -> None:
+        self.on_odom(agent_id, msg, now=self._rospy.get_time())
 
     def _markers(self, msg: MarkerArray) -> None:
         for problem in self.on_markers(msg):
