@@ -189,12 +189,19 @@ class RosStateFactory:
 
 
 def wait_sim_seconds(seconds: float, stop: Callable[[], bool]) -> bool:
-    """Sleep `seconds` of ROS time (simulated under /use_sim_time); False when `stop` ended it early."""
+    """Sleep `seconds` of ROS time (simulated under /use_sim_time); False when `stop` ended it early.
+
+    Wakes at every /clock message (rospy's time condition), so that at rtf max a wait ends
+    within one clock period of simulated time, not one POLL of wall time (hundreds of
+    simulated seconds while the simulator is idle); `stop` is looked at least every POLL.
+    """
     deadline = rospy.get_time() + seconds
+    tick = rospy.rostime.get_rostime_cond()
     while rospy.get_time() < deadline:
         if stop() or rospy.is_shutdown():
             return False
-        time.sleep(min(POLL, max(0.0, deadline - rospy.get_time())) or POLL / 5)
+        with tick:
+            tick.wait(min(POLL, max(deadline - rospy.get_time(), 0.001)))
     return True
 
 

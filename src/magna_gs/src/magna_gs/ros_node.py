@@ -47,6 +47,7 @@ from magna_gs.commands import CommandPlan, CommandRefused, Param, UavStatus, pla
 from magna_gs.factory import ActionClients, RosStateFactory, wait_sim_seconds
 from magna_gs.mission.build import build_machine
 from magna_gs.mission.loader import MissionError, load_mission
+from magna_gs.sim_pause import SimulationPause
 from magna_sm.introspection import IntrospectionServer
 from magna_uav.files import write_atomically
 
@@ -98,9 +99,12 @@ class GroundStationServices:
         self.spawned: list[int] = []
         self.managers: dict[int, subprocess.Popen] = {}
         self.configs = {c.id: c for c in mission.agents}
+        self.sim_pause = SimulationPause()
 
     # --- helpers the states use ------------------------------------------------------------
     def action_client(self, uav_id: int, action: str):
+        """The client of one manager's action; simulated time runs from here on (see sim_pause)."""
+        self.sim_pause.run()
         return self.clients.get(uav_id, action)
 
     def wait_while_paused(self, stop) -> bool:
@@ -127,6 +131,10 @@ class GroundStationServices:
     def world_config(self, action: str, world_id, definition) -> bool:
         """spawn: the world node is the world (make sure it is up; add what comes with it);
         add: a part from the hyperparameters' world or inline volumes; delete: every part added."""
+        self.sim_pause.stand_still()
+        return self._world_config(action, world_id, definition)
+
+    def _world_config(self, action: str, world_id, definition) -> bool:
         rospy.wait_for_service("/magna/world/add", timeout=30.0)
         if action == "spawn" and definition is None:
             return True
@@ -162,6 +170,7 @@ class GroundStationServices:
         return ok
 
     def wait(self, exit_type: str, duration: float, state) -> bool:
+        self.sim_pause.run()
         if exit_type == "button":
             self.button.clear()
             limit = f", or {self.button_timeout:g} s" if self.button_timeout > 0 else ""
@@ -177,6 +186,11 @@ class GroundStationServices:
         return wait_sim_seconds(duration, state.preempt_requested)
 
     def spawn_agents(self, initial_poses) -> bool:
+        """Spawn every UAV at its initial pose and start its manager; time stands still until all are ready."""
+        self.sim_pause.stand_still()
+        return self._spawn_agents(initial_poses)
+
+    def _spawn_agents(self, initial_poses) -> bool:
         agents = self.mission.agents
         if len(initial_poses) < len(agents):
             rospy.logerr(f"spawn_agents: {len(initial_poses)} initial poses for {len(agents)} agents")
@@ -212,6 +226,7 @@ class GroundStationServices:
         self.managers[uav_id] = subprocess.Popen(command, start_new_session=True, **quiet)
 
     def algorithm_control(self, ids, name, action, params, values, text_value: str = "") -> bool:
+        self.sim_pause.run()
         ok = True
         for uav_id in ids:
             service = f"/magna/uav_{uav_id}/algorithm_control"
@@ -225,6 +240,7 @@ class GroundStationServices:
         return ok
 
     def save_csv(self, ids) -> bool:
+        self.sim_pause.run()
         if not self.save_data or not self.data_dir:
             return True
         ok = True
@@ -406,7 +422,7 @@ class GroundStation:
 
     def run(self) -> int:
         self.introspection.start()
-        start = rospy.get_time()
+        start, wall_start = rospy.get_time(), time.monotonic()
         rospy.loginfo(f"mission {self.mission_file.name}: {len(self.mission.agents)} UAVs, starting")
         try:
             outcome = self.machine.execute()
@@ -415,13 +431,19 @@ class GroundStation:
             rospy.logerr(f"mission failed: {error!r}")
             outcome, message = "aborted", f"the mission failed: {error}"
         duration = rospy.get_time() - start
-        self.finish(outcome, message, duration)
+        wall = (time.monotonic() - wall_start, self.services.sim_pause.still_wall_now())
+        self.finish(outcome, message, duration, wall)
         return 0
 
-    def finish(self, outcome: str, message: str, duration: float) -> None:
-        """Save, stop the managers, delete models and obstacles, close the bag, tell the Master."""
-        rospy.loginfo(f"finishing: {message} after {duration:.1f} s of sim time")
+    def finish(self, outcome: str, message: str, duration: float, wall: tuple[float, float] = (0.0, 0.0)) -> None:
+        """Save, stop the managers, delete models and obstacles, close the bag, tell the Master.
+
+        `wall`: wall seconds of the mission and, of those, of setup with simulated time standing still.
+        """
+        rospy.loginfo(f"finishing: {message} after {duration:.1f} s of sim time, {wall[0]:.1f} s of wall time "
+                      f"({wall[1]:.1f} s of it setting up)")
         services = self.services
+        services.sim_pause.run()  # the managers save and stop in simulated time
         steps = []
         if self.save_data and self.data_dir and services.spawned:
             steps.append(("saving the CSVs", lambda: services.save_csv(list(services.spawned))))
@@ -443,7 +465,7 @@ class GroundStation:
         success = outcome in SUCCESS_OUTCOMES and not events
         if events:
             message += "; critical events: " + ", ".join(f"UAV {i} {e}" for i, e in events)
-        self._report(success, outcome, message, duration, collisions)
+        self._report(success, outcome, message, duration, collisions, wall)
         self.introspection.stop()
 
     def _close_bag(self) -> None:
@@ -454,7 +476,7 @@ class GroundStation:
         if active.exists():
             shutil.move(active, self.data_dir / "simulation.bag")
 
-    def _report(self, success, outcome, message, duration, collisions) -> None:
+    def _report(self, success, outcome, message, duration, collisions, wall) -> None:
         name = "/magna/master/simulation_termination"
         try:
             rospy.wait_for_service(name, timeout=2.0)
@@ -463,7 +485,8 @@ class GroundStation:
             return
         try:
             rospy.ServiceProxy(name, SimulationTermination)(success=success, outcome=outcome, message=message,
-                                                            sim_duration=duration, collisions=collisions)
+                                                            sim_duration=duration, collisions=collisions,
+                                                            wall_duration=wall[0], setup_wall_duration=wall[1])
         except rospy.ServiceException as error:
             rospy.logwarn(f"the Master did not take the result: {error}")
 

@@ -159,6 +159,8 @@ class Termination:
     message: str
     sim_duration: float
     collisions: int
+    wall_duration: float = 0.0  # wall s of the mission, start to end (0: not reported)
+    setup_wall_duration: float = 0.0  # of those, wall s with the simulator paused for setup
 
 
 class SupervisorCore:
@@ -316,6 +318,8 @@ class SupervisorCore:
             "sim_duration": float(reported.sim_duration) if reported is not None else 0.0,
             "collisions": int(reported.collisions) if reported is not None else 0,
             "wall_time": round(float(wall), 3),
+            "mission_wall_time": round(reported.wall_duration, 3) if reported is not None else 0.0,
+            "setup_wall_time": round(reported.setup_wall_duration, 3) if reported is not None else 0.0,
             "termination": kind,
             "reported": reported is not None,
             "time_limit": self.time_limit,
@@ -426,7 +430,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     def handle(request):
         acknowledged = core.on_termination(Termination(
             success=bool(request.success), outcome=request.outcome, message=request.message,
-            sim_duration=float(request.sim_duration), collisions=int(request.collisions)))
+            sim_duration=float(request.sim_duration), collisions=int(request.collisions),
+            wall_duration=float(request.wall_duration), setup_wall_duration=float(request.setup_wall_duration)))
         return SimulationTerminationResponse(acknowledged=acknowledged)
 
     service = rospy.Service(TERMINATION_SERVICE, SimulationTermination, handle)

@@ -1,0 +1,76 @@
+"""Keeps magna_sim's time standing still while a mission sets up.
+
+Starting a UAV manager takes a few wall seconds (a Python process importing rospy, numpy,
+the mission); at rtf max an idle simulator turns them into minutes of simulated time in
+which nothing happens, which then count in the mission's duration and flatter its
+sim/wall factor, and it takes CPU from the processes starting. So the simulation launch
+starts the simulator paused; the setup states (world_config, spawn_agents) pause it, and
+it runs again as soon as something needs simulated time to pass: an action goal, a wait,
+an algorithm change, saving the CSVs, an operator's command, the finishing sequence.
+Resuming only then (not at the end of each setup state) keeps the idle simulator from
+racing ahead between two setup states: empty, it steps hundreds of times faster than
+real time.
+
+Against another simulator (no /magna/sim/pause service) it warns once and does nothing.
+"""
+from __future__ import annotations
+
+import time
+
+import rospy
+from std_srvs.srv import SetBool
+
+PAUSE_SERVICE = "/magna/sim/pause"
+
+
+class SimulationPause:
+    def __init__(self, service: str = PAUSE_SERVICE, wait: float = 30.0):
+        self.service, self.wait = service, wait
+        self._proxy = None
+        self._missing = False
+        self._paused: bool | None = None  # as last set here; None: not known (the launch decides)
+        self._still_since: float | None = None
+        self.still_wall = 0.0  # wall seconds the simulator stood still at our request
+
+    def still_wall_now(self) -> float:
+        """Wall seconds stood still so far, the current pause included."""
+        ongoing = time.monotonic() - self._still_since if self._still_since is not None else 0.0
+        return self.still_wall + ongoing
+
+    def set(self, paused: bool) -> None:
+        """Pause (True) or resume (False) the simulator, if it has the service; a repeat costs nothing."""
+        if paused == self._paused:
+            return
+        proxy = self._connect()
+        if proxy is None:
+            return
+        try:
+            answer = proxy(data=paused)
+        except rospy.ServiceException as error:  # the simulator went away: nothing left to pause
+            rospy.logwarn(f"{self.service}: {error}")
+            return
+        self._paused = paused
+        if paused:
+            self._still_since = time.monotonic()
+        elif self._still_since is not None:
+            self.still_wall += time.monotonic() - self._still_since
+            self._still_since = None
+        rospy.logdebug(f"{self.service}: {answer.message}")
+
+    def stand_still(self) -> None:
+        self.set(True)
+
+    def run(self) -> None:
+        self.set(False)
+
+    def _connect(self):
+        if self._proxy is None and not self._missing:
+            try:
+                rospy.wait_for_service(self.service, timeout=self.wait)
+            except rospy.ROSException:
+                self._missing = True
+                rospy.logwarn(f"{self.service} did not come within {self.wait:g} s: the simulator cannot be "
+                              f"paused, so simulated time runs on while UAVs are spawned")
+                return None
+            self._proxy = rospy.ServiceProxy(self.service, SetBool, persistent=False)
+        return self._proxy
