@@ -1,4 +1,4 @@
-"""Keeps simulated time at a chosen multiple of wall time (or lets it run free)."""
+"""Keeps simulated time at a chosen multiple of wall time (or lets it run free), and behind the controllers."""
 from __future__ import annotations
 
 import math
@@ -75,3 +75,50 @@ class Hold:
         self._paused = paused
         self.changes += 1
         return f"{'paused' if paused else 'resumed'} at t={sim_time:.3f} s"
+
+
+class Lockstep:
+    """Keeps the simulation from running ahead of the controllers that fly its UAVs.
+
+    At rtf max nothing else limits the simulator: on a loaded machine (ten UAV managers on two
+    cores) it outran them, and they flew on stale poses, 3 to 7 control steps per simulated
+    second instead of 10. Each UAV manager announces the simulated time of every control step
+    while it flies a role (`heard`), and a negative time when it stops stepping. The loop asks
+    `holds(next_time)` before each physics step: it holds while an engaged controller's last
+    step is more than `lead` seconds behind. A controller that stays silent for `timeout` wall
+    seconds (a dead or stuck process) is let go, so that it cannot freeze the simulation; it
+    is engaged again by its next step.
+    """
+
+    def __init__(self, lead: float = 0.15, timeout: float = 1.0, clock=time.monotonic):
+        if not (math.isfinite(lead) and lead > 0):
+            raise ValueError(f"~lockstep_lead: {lead} must be a positive number of simulated seconds")
+        if not (math.isfinite(timeout) and timeout > 0):
+            raise ValueError(f"~lockstep_timeout: {timeout} must be a positive number of wall seconds")
+        self.lead, self.timeout, self._clock = lead, timeout, clock
+        self._last: dict[int, tuple[float, float]] = {}  # id -> (simulated time of its last step, wall time heard)
+        self.let_go: list[int] = []  # controllers released by the timeout, for the caller to report
+
+    def heard(self, uav_id: int, sim_time: float) -> None:
+        """A control step at `sim_time` (negative: the controller stopped stepping)."""
+        if sim_time < 0:
+            self._last.pop(uav_id, None)
+        else:
+            self._last[uav_id] = (sim_time, self._clock())
+
+    def forget(self, uav_id: int) -> None:
+        self._last.pop(uav_id, None)
+
+    def holds(self, next_time: float) -> bool:
+        """True while some engaged controller is too far behind `next_time` (and not yet given up on)."""
+        now = self._clock()
+        holding = False
+        for uav_id, (last, wall) in list(self._last.items()):
+            if next_time <= last + self.lead:
+                continue
+            if now - wall > self.timeout:
+                self._last.pop(uav_id, None)
+                self.let_go.append(uav_id)
+                continue
+            holding = True
+        return holding

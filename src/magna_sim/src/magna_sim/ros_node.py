@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -19,12 +20,13 @@ from magna_msgs.msg import CollisionEvent
 from magna_msgs.srv import DeleteModel, DeleteModelResponse, SpawnModel, SpawnModelResponse
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import BatteryState, CameraInfo, Image
+from std_msgs.msg import Float64
 from std_srvs.srv import SetBool, SetBoolResponse
 from tf2_msgs.msg import TFMessage
 
 from .command_queue import CommandQueue
 from .depth_camera import DepthCamera
-from .pacing import Hold, Pacer, parse_real_time_factor
+from .pacing import Hold, Lockstep, Pacer, parse_real_time_factor
 from .ros_ual import MAP_FRAME, UalServer, quaternion_yaw
 from .streams import stream_publisher
 from .ual_logic import UalSettings
@@ -53,6 +55,10 @@ Private parameters (defaults):
   ~pub_rate (30)         UAL topics and tf per simulated second
   ~clock_rate (100)      /clock messages per simulated second
   ~start_paused (false)  start with simulated time standing still until /magna/sim/pause false
+  ~lockstep (true)       never run more than ~lockstep_lead (0.15) simulated s ahead of a UAV
+                         manager flying a role (it announces each control step on
+                         /magna/uav_{id}/control_step, std_msgs/Float64); one silent for
+                         ~lockstep_timeout (1.0) wall s is let go
   ~seed (none)           seed for wind and sensor noise: same seed, same run
   ~noise/position_std (0), ~noise/velocity_std (0), ~wind_std (0, N, dynamic model only)
   ~map_origin_geo ([])   [lat, lon, alt] of the map origin, for go_to_waypoint_geo
@@ -92,6 +98,9 @@ class NodeSettings:
     ual: UalSettings
     ground_impact_speed: float
     start_paused: bool = False
+    lockstep: bool = True
+    lockstep_lead: float = 0.15
+    lockstep_timeout: float = 1.0
 
     @classmethod
     def from_params(cls) -> NodeSettings:
@@ -122,7 +131,10 @@ class NodeSettings:
                             orientation_th=float(rospy.get_param("~orientation_th", 0.65)),
                             velocity_timeout=float(rospy.get_param("~velocity_timeout", 1.0))),
             ground_impact_speed=float(rospy.get_param("~ground_impact_speed", 1.0)),
-            start_paused=_as_bool("~start_paused", rospy.get_param("~start_paused", False)))
+            start_paused=_as_bool("~start_paused", rospy.get_param("~start_paused", False)),
+            lockstep=_as_bool("~lockstep", rospy.get_param("~lockstep", True)),
+            lockstep_lead=float(rospy.get_param("~lockstep_lead", 0.15)),
+            lockstep_timeout=float(rospy.get_param("~lockstep_timeout", 1.0)))
         for name in ("physics_rate", "pub_rate", "clock_rate", "battery_rate"):
             value = getattr(settings, name)
             if not (math.isfinite(value) and value > 0):
@@ -197,6 +209,9 @@ class SimNode:
         self._tf_pub = stream_publisher("/tf", TFMessage)
         self._collision_pub = rospy.Publisher("/magna/sim/collisions", CollisionEvent, queue_size=100)
         self._battery_pubs: dict[int, rospy.Publisher] = {}
+        self.lockstep = Lockstep(settings.lockstep_lead, settings.lockstep_timeout) if settings.lockstep else None
+        self._step_heard = threading.Event()
+        self._step_subs: dict[int, rospy.Subscriber] = {}
         for i, position in enumerate(initial_positions(settings.uavs, settings.spacing), start=1):
             self.spawn_uav(f"uav_{i}", i, settings.model, settings.flight_model, position, 0.0)
         self.hold = Hold(settings.start_paused)
@@ -214,6 +229,9 @@ class SimNode:
         vehicle = self.world.spawn_uav(name, uav_id, airframe, flight_model, position, yaw, rgba)
         self.servers[uav_id] = UalServer(uav_id, self.world.ual[uav_id], self.queue, self.settings.map_origin_geo)
         self._battery_pubs[uav_id] = rospy.Publisher(f"/uav_{uav_id}/mavros/battery", BatteryState, queue_size=1)
+        if self.lockstep is not None:
+            self._step_subs[uav_id] = rospy.Subscriber(f"/magna/uav_{uav_id}/control_step", Float64,
+                                                       self._on_control_step, uav_id, queue_size=1, tcp_nodelay=True)
         if self._camera is not None:
             base = f"/uav_{uav_id}/camera/depth/"
             self.cameras[uav_id] = (rospy.Publisher(base + "image_raw", Image, queue_size=1),
@@ -231,6 +249,9 @@ class SimNode:
         return kind
 
     def _forget_uav(self, uav_id: int) -> None:
+        if uav_id in self._step_subs:
+            self._step_subs.pop(uav_id).unregister()
+            self.lockstep.forget(uav_id)
         self.servers.pop(uav_id).shutdown()
         self._battery_pubs.pop(uav_id).unregister()
         for publisher in self.cameras.pop(uav_id, ()):
@@ -263,6 +284,10 @@ class SimNode:
     def _on_delete(self, req):
         return DeleteModelResponse(*self._answer("delete_model", lambda: f"deleted {self.delete(req.name)} "
                                                                          f"'{req.name}'"))
+
+    def _on_control_step(self, msg: Float64, uav_id: int) -> None:
+        self.lockstep.heard(uav_id, msg.data)
+        self._step_heard.set()
 
     def _on_pause(self, req):
         message = self.hold.set(req.data, self.world.time)
@@ -297,6 +322,8 @@ class SimNode:
                 if changes != self.hold.changes:  # resumed: pace from here, not from before the pause
                     changes = self.hold.changes
                     pacer.restart()
+                if self._behind_a_controller():
+                    continue
                 contacts = self.world.step()
                 self.queue.check_waiters()
                 now = self.world.time
@@ -318,6 +345,21 @@ class SimNode:
                 pacer.wait(now)
         finally:
             self.shutdown()
+
+    def _behind_a_controller(self) -> bool:
+        """Wait a little (up to 10 ms) while a UAV manager has not caught up with the next physics step."""
+        if self.lockstep is None:
+            return False
+        self._step_heard.clear()  # before looking: a step heard after the look still ends the wait
+        holding = self.lockstep.holds(self.world.time + self.world.dt)
+        if self.lockstep.let_go:
+            ids, self.lockstep.let_go = self.lockstep.let_go, []
+            rospy.logwarn(f"magna_sim: the UAV manager(s) of UAV {', '.join(map(str, ids))} went silent for "
+                          f"{self.lockstep.timeout:g} wall s while flying; the simulation goes on without "
+                          f"waiting for them")
+        if holding:
+            self._step_heard.wait(0.01)
+        return holding
 
     def _stand_still(self, clock_msg: Clock, set_own_time) -> None:
         """One wall period of a pause: re-send the frozen time and the poses, carry out commands meanwhile."""

@@ -21,7 +21,7 @@ from geometry_msgs.msg import Point, PoseStamped
 from magna_msgs import msg as magna_actions
 from magna_msgs.srv import AlgorithmControl, AlgorithmControlResponse, Die, DieResponse, StateActualization
 from nav_msgs.msg import Path as PathMsg
-from std_msgs.msg import String
+from std_msgs.msg import Float64, String
 
 from magna_sm import CBState, StateMachine
 from magna_sm.introspection import IntrospectionServer
@@ -217,6 +217,33 @@ class Reporter:
                 rospy.logdebug("no ground station to report %r to", state)
 
 
+class SteppingClock:
+    """The control loop's clock, announcing each control step to the simulator (its lockstep).
+
+    While a role flies, every step's simulated time goes out on /magna/uav_{id}/control_step
+    (std_msgs/Float64) before the loop sleeps; `release()` sends -1 when the loop stops
+    stepping (idle hovers on a held setpoint and needs no pacing). magna_sim then never runs
+    more than its ~lockstep_lead ahead of a manager that is flying, however loaded the
+    machine. Nothing listens on a real UAV, and the announcement costs one small message.
+    """
+
+    def __init__(self, rate, topic: str):
+        self.rate = rate
+        self.last = -1.0
+        self.publisher = rospy.Publisher(topic, Float64, queue_size=1, tcp_nodelay=True)
+
+    def now(self) -> float:
+        self.last = rospy.get_time()
+        return self.last
+
+    def sleep(self) -> None:
+        self.publisher.publish(Float64(self.last))
+        self.rate.sleep()
+
+    def release(self) -> None:
+        self.publisher.publish(Float64(-1.0))
+
+
 class UavManagerNode:
     def __init__(self, settings: Settings):
         self.settings = settings
@@ -237,9 +264,9 @@ class UavManagerNode:
         self.evaluator = Evaluator(own, settings.low_battery)
         self.recorder = Recorder(self.uav_id, [c.id for c in settings.configs if c.id != self.uav_id],
                                  depth=settings.depth)
-        rate = rospy.Rate(settings.control_rate)
+        self.stepping = SteppingClock(rospy.Rate(settings.control_rate), ns + "control_step")
         self.manager = UavManager(self.view, self.commander, self.nai, self.evaluator, self.recorder,
-                                  Clock(rospy.get_time, rate.sleep), lock=self.data.lock)
+                                  Clock(self.stepping.now, self.stepping.sleep), lock=self.data.lock)
         self.desk = OrderDesk()
         self.pending: Order | None = None  # the order idle hands to the action's state
         self.reporter = Reporter(self.uav_id)
@@ -316,6 +343,8 @@ class UavManagerNode:
         except Exception as error:  # a role must end with an outcome, never leave the server hanging
             rospy.logerr(f"UAV {self.uav_id} {action} failed: {error!r}")
             result = RoleResult(ABORTED, f"{action} failed: {error}")
+        finally:
+            self.stepping.release()
         self.manager.hover()
         self.recorder.set_outcome(result.outcome)
         critical = result.outcome if result.outcome in ("collision", "low_battery", "GS_critical_event") else ""
