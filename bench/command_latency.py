@@ -28,6 +28,7 @@ import json
 import math
 import os
 import random
+import signal
 import subprocess
 import sys
 import tempfile
@@ -292,6 +293,23 @@ def draw(rows: list[dict], path: Path, agent: str) -> None:
     plt.close(fig)
 
 
+def run_worker(argv: list[str]) -> None:
+    """Run one fleet's worker; on Ctrl-C pass it on and let the worker end what it started."""
+    worker = subprocess.Popen(argv)
+    try:
+        code = worker.wait()
+    except BaseException:
+        worker.send_signal(signal.SIGINT)  # its clean-up stops the ROS master and every tagged process
+        try:
+            worker.wait(timeout=120)
+        except subprocess.TimeoutExpired:
+            worker.kill()
+            worker.wait()
+        raise
+    if code != 0:
+        raise subprocess.CalledProcessError(code, argv)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--fleets", type=int, nargs="+", default=[1, 2, 3, 10], help="fleet sizes (max 10)")
@@ -321,8 +339,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{n} UAV(s): {args.warmup} + {args.trials} commands (load average {os.getloadavg()[0]:.1f}) ...",
               flush=True)
         with tempfile.NamedTemporaryFile(suffix=".json") as out:
-            subprocess.run([sys.executable, __file__, "--worker", str(n), "--out", out.name, *passthrough],
-                           check=True)
+            run_worker([sys.executable, __file__, "--worker", str(n), "--out", out.name, *passthrough])
             row = json.loads(Path(out.name).read_text())
         if row["error"]:
             print(f"   failed: {row['error']}", flush=True)
