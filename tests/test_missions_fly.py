@@ -35,9 +35,9 @@ CORPUS_PAIRS = [
 
 
 def magna_run(*args, data_root: Path, check: bool = True, rtf: str = "5") -> subprocess.CompletedProcess:
-    # At a fixed 5x real time, not "max": whether a mission succeeds must not depend on how busy
-    # the machine is (at max the simulator runs ahead of UAV managers starved of CPU). Speed is
-    # bench/mission_batch.py's business.
+    # At a fixed 5x real time, not "max": magna_sim's lockstep keeps it from running ahead of a
+    # flying UAV manager, but a manager that is not flying (between goals) is not waited for, and
+    # the tests' outcome must not depend on how busy the machine is. Speed is bench/mission_batch.py's business.
     command = [str(ROOT / "magna"), "run", "--data-root", str(data_root), "--time-limit", "600", "--rtf", rtf, *args]
     done = subprocess.run(command, capture_output=True, text=True, cwd=ROOT, stdin=subprocess.DEVNULL)
     if check:
