@@ -12,6 +12,7 @@ import argparse
 import collections
 import queue
 import threading
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -346,7 +347,10 @@ class UavManagerNode:
         finally:
             self.stepping.release()
         self.manager.hover()
-        self.recorder.set_outcome(result.outcome)
+        try:
+            self.recorder.set_outcome(result.outcome)
+        except LookupError:  # the role ended before its first step: no row to mark
+            pass
         critical = result.outcome if result.outcome in ("collision", "low_battery", "GS_critical_event") else ""
         self.reporter.report(f"{action}_{result.outcome}", critical)
         self.desk.release(order)
@@ -424,7 +428,20 @@ class UavManagerNode:
         self.manager.gs_critical_event = bool(msg.data)
 
     # --- life ----------------------------------------------------------------------------
+    def wait_for_own_pose(self, limit: float = 30.0) -> bool:
+        """Wall-wait until the own UAV's first pose is heard: a goal before it could only fail."""
+        deadline = time.monotonic() + limit
+        while not rospy.is_shutdown() and time.monotonic() < deadline:
+            with self.data.lock:
+                if self.view.has_own:
+                    return True
+            time.sleep(0.01)
+        rospy.logwarn(f"UAV {self.uav_id} manager: no pose on /uav_{self.uav_id}/ual/pose within {limit:g} s; "
+                      f"serving anyway, and roles will abort until one comes")
+        return False
+
     def run(self) -> str:
+        self.wait_for_own_pose()  # the action servers come up (the manager is "ready") only after it
         for server in self.servers.values():
             server.start()
         self.introspection.start()
