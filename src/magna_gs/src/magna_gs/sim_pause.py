@@ -4,12 +4,14 @@ Starting a UAV manager takes a few wall seconds (a Python process importing rosp
 the mission); at rtf max an idle simulator turns them into minutes of simulated time in
 which nothing happens, which then count in the mission's duration and flatter its
 sim/wall factor, and it takes CPU from the processes starting. So the simulation launch
-starts the simulator paused; the setup states (world_config, spawn_agents) pause it, and
-it runs again as soon as something needs simulated time to pass: an action goal, a wait,
-an algorithm change, saving the CSVs, an operator's command, the finishing sequence.
-Resuming only then (not at the end of each setup state) keeps the idle simulator from
-racing ahead between two setup states: empty, it steps hundreds of times faster than
-real time.
+starts the simulator paused, the setup states at the mission's start (world_config,
+spawn_agents) keep it so, and it runs from the first moment something needs simulated
+time to pass: an action goal, a wait, an algorithm change, saving the CSVs, an operator's
+command, the finishing sequence. Resuming only then (not at the end of each setup state)
+keeps the idle simulator from racing ahead between two setup states: empty, it steps
+hundreds of times faster than real time. Once time has run it is never stopped again: a
+world_config later in the mission may run beside UAVs that are flying (a Concurrence),
+and pausing then would freeze their goals with nobody left to resume.
 
 Against another simulator (no /magna/sim/pause service) it warns once and does nothing.
 """
@@ -31,6 +33,7 @@ class SimulationPause:
         self._paused: bool | None = None  # as last set here; None: not known (the launch decides)
         self._still_since: float | None = None
         self.still_wall = 0.0  # wall seconds the simulator stood still at our request
+        self._ran = False  # time has run once: the setup is over
 
     def still_wall_now(self) -> float:
         """Wall seconds stood still so far, the current pause included."""
@@ -58,9 +61,12 @@ class SimulationPause:
         rospy.logdebug(f"{self.service}: {answer.message}")
 
     def stand_still(self) -> None:
-        self.set(True)
+        """Pause, only while the mission is still setting up (before time first ran)."""
+        if not self._ran:
+            self.set(True)
 
     def run(self) -> None:
+        self._ran = True
         self.set(False)
 
     def _connect(self):
