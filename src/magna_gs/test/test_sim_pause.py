@@ -23,14 +23,27 @@ class StandIn(SimulationPause):
         return self.service_proxy
 
 
-def test_setup_pauses_once_and_time_once_run_is_never_paused_again():
+def test_setup_pauses_and_time_runs_only_when_needed():
     pause = StandIn()
     pause.stand_still()  # world_config
     pause.stand_still()  # spawn_agents: already paused, no second call
-    pause.run()  # the first take-off
-    pause.run()
-    pause.stand_still()  # a world_config beside flying UAVs must not freeze them
-    assert pause.service_proxy.calls == [True, False]
+    with pause.time_needed():  # a wait: time runs
+        pass
+    pause.stand_still()  # the next setup state stops it again
+    pause.run()  # an operator's command
+    assert pause.service_proxy.calls == [True, False, True, False]
+
+
+def test_no_setup_state_pauses_while_a_goal_needs_time():
+    pause = StandIn()
+    pause.stand_still()
+    with pause.time_needed():  # a follow_path in a Concurrence ...
+        pause.stand_still()  # ... beside a world_config: no pause, or the flight would freeze
+        with pause.time_needed():
+            pass
+        pause.stand_still()
+    pause.stand_still()  # both done: the setup state may pause again
+    assert pause.service_proxy.calls == [True, False, True]
 
 
 def test_the_wall_time_spent_standing_still_is_counted(monkeypatch):

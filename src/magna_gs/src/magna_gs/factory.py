@@ -49,6 +49,10 @@ class MissionActionState(State):
         self.services, self.uav_id, self.action, self.make_goal, self.where = services, uav_id, action, make_goal, where
 
     def execute(self, ud) -> str:
+        with self.services.sim_pause.time_needed():  # no setup state pauses the simulator under a flying goal
+            return self._execute()
+
+    def _execute(self) -> str:
         client = self.services.action_client(self.uav_id, self.action)
         while True:
             if not self.services.wait_while_paused(self.preempt_requested):

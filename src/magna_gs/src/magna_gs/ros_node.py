@@ -170,7 +170,10 @@ class GroundStationServices:
         return ok
 
     def wait(self, exit_type: str, duration: float, state) -> bool:
-        self.sim_pause.run()
+        with self.sim_pause.time_needed():
+            return self._wait(exit_type, duration, state)
+
+    def _wait(self, exit_type: str, duration: float, state) -> bool:
         if exit_type == "button":
             self.button.clear()
             limit = f", or {self.button_timeout:g} s" if self.button_timeout > 0 else ""
@@ -226,7 +229,7 @@ class GroundStationServices:
         self.managers[uav_id] = subprocess.Popen(command, start_new_session=True, **quiet)
 
     def algorithm_control(self, ids, name, action, params, values, text_value: str = "") -> bool:
-        self.sim_pause.run()
+        self.sim_pause.run()  # a service call: it needs no time, only managers that are not held
         ok = True
         for uav_id in ids:
             service = f"/magna/uav_{uav_id}/algorithm_control"
@@ -240,7 +243,10 @@ class GroundStationServices:
         return ok
 
     def save_csv(self, ids) -> bool:
-        self.sim_pause.run()
+        with self.sim_pause.time_needed():  # the managers' save_csv actions run in simulated time
+            return self._save_csv(ids)
+
+    def _save_csv(self, ids) -> bool:
         if not self.save_data or not self.data_dir:
             return True
         ok = True
