@@ -145,12 +145,35 @@ def test_a_spec_that_differs_from_the_input_definition_is_refused_naming_the_fil
         load_model(path)
 
 
+def test_the_neighbour_distance_of_the_spec_wins_over_the_parameter(tmp_path):
+    # UAV 2 and the post are 1.4 and 2.2 m apart (gaps): with the trained 1.0 m neither counts,
+    # so both slots hold the padding at 2 x 1.0 m, whatever neighborDist the mission gives.
+    recorded = []
+
+    class Echo(torch.nn.Module):
+        def forward(self, x):
+            return x[:, :3] * 0.0
+
+    model = load_model(save(tmp_path, Echo(), n=1, m=1, neighbor_dist=1.0, about={"trained_on": "test"}))
+    assert model.spec.neighbor_dist == 1.0
+    original = model.module
+    model.module = lambda x: (recorded.append(x.clone()), original(x))[1]
+    _, neighbors = model.velocity(world(), Goal([1, 0, 5]), neighbor_dist=6.0)
+    assert neighbors.ids == () and neighbors.obstacle_names == ()
+    np.testing.assert_allclose(recorded[0][0, 6:].numpy(), [2, 0, 0, 0, 0, 0, 2, 0, 0])
+    without = load_model(save(tmp_path, Echo(), n=1, m=1, name="plain"))
+    assert without.spec.neighbor_dist is None
+    assert without.velocity(world(), Goal([1, 0, 5]), neighbor_dist=6.0)[1].ids == (2,)
+
+
 @pytest.mark.parametrize("change,message", [
     ({"role": "basic_move"}, "role is 'basic_move': give one of path, agent_ad, agent_ap"),
     ({"outputs": ["vel.x", "vel.y", "vel.z"]}, "outputs is"),
     ({"image": {"height": 0, "width": 3}}, "image.height is 0"),
     ({"n_neighbors": -1}, "n_neighbors is -1"),
     ({"extra": 1}, "unknown key 'extra'"),
+    ({"neighbor_dist": 0}, "neighbor_dist is 0: give the positive distance"),
+    ({"neighbor_dist": "6"}, "neighbor_dist is '6'"),
 ])
 def test_bad_specs_are_refused(tmp_path, change, message):
     path = save(tmp_path, TowardsGoal(input_size("path", 2, 1)), **change)

@@ -7,11 +7,17 @@ Files (mlr's export writes both):
                         "n_neighbors": N, "n_obstacles": M,
                         "inputs": [input_names(role, N, M)...],      # exactly, in order
                         "outputs": ["sel_vel.x", "sel_vel.y", "sel_vel.z"],
-                        "image": null | {"height": H, "width": W}}
+                        "image": null | {"height": H, "width": W},
+                        "neighbor_dist": D,                          # optional, m
+                        "about": {...}}                              # optional, free
 
 The spec's `inputs` must equal `magna_uav.nai.inputs.input_names(role, N, M)`: a model
 trained on another order is refused, naming the file and the first differing input.
-Other keys are refused too, so a typo cannot pass silently.
+Other keys are refused too, so a typo cannot pass silently. `neighbor_dist` is the
+neighbour distance the network was trained with (it decides which neighbours count and where
+the padding sits): when present the NAI selects and pads with it and ignores its own
+`neighborDist` parameter, so a network always sees inputs shaped like its training data.
+`about` is for people (what it was trained on, its metrics); the NAI does not read it.
 
 Call signature (CPU, inside torch.no_grad, float32 tensors):
 
@@ -32,6 +38,7 @@ of values is refused at load time, not in flight. torch is imported on first use
 from __future__ import annotations
 
 import json
+import math
 import re
 import warnings
 from dataclasses import dataclass
@@ -53,6 +60,7 @@ from magna_uav.nai.inputs import (
 from magna_uav.world_view import WorldView
 
 SPEC_KEYS = ("role", "n_neighbors", "n_obstacles", "inputs", "outputs", "image")
+OPTIONAL_SPEC_KEYS = ("neighbor_dist", "about")
 DEPTH_FAR = 20.0  # m: what +inf / NaN depth pixels read as, and the clip
 
 
@@ -75,6 +83,7 @@ class ModelSpec:
     inputs: tuple[str, ...]
     outputs: tuple[str, ...]
     image: ImageSpec | None
+    neighbor_dist: float | None = None  # m: the distance it was trained with, when the spec says
 
 
 def spec_path(model_path: str | Path) -> Path:
@@ -107,9 +116,10 @@ def parse_spec(raw, source: Path) -> ModelSpec:
     for key in SPEC_KEYS:
         if key not in raw:
             raise NeuralModelError(f"{source}: {key} is missing (a spec has {', '.join(SPEC_KEYS)})")
-    unknown = sorted(set(raw) - set(SPEC_KEYS))
+    unknown = sorted(set(raw) - set(SPEC_KEYS) - set(OPTIONAL_SPEC_KEYS))
     if unknown:
-        raise NeuralModelError(f"{source}: unknown key {unknown[0]!r}: a spec has only {', '.join(SPEC_KEYS)}")
+        raise NeuralModelError(f"{source}: unknown key {unknown[0]!r}: a spec has only "
+                               f"{', '.join(SPEC_KEYS + OPTIONAL_SPEC_KEYS)}")
     role = raw["role"]
     if role not in INPUT_ROLES:
         raise NeuralModelError(f"{source}: role is {role!r}: give one of {', '.join(INPUT_ROLES)}")
@@ -131,7 +141,14 @@ def parse_spec(raw, source: Path) -> ModelSpec:
             if isinstance(image[key], bool) or not isinstance(image[key], int) or image[key] < 1:
                 raise NeuralModelError(f"{source}: image.{key} is {image[key]!r}: give a whole number of pixels >= 1")
         image = ImageSpec(image["height"], image["width"])
-    return ModelSpec(source, role, n, m, tuple(raw["inputs"]), tuple(raw["outputs"]), image)
+    neighbor_dist = raw.get("neighbor_dist")
+    if neighbor_dist is not None:
+        if isinstance(neighbor_dist, bool) or not isinstance(neighbor_dist, int | float) \
+                or not math.isfinite(neighbor_dist) or neighbor_dist <= 0:
+            raise NeuralModelError(f"{source}: neighbor_dist is {neighbor_dist!r}: give the positive distance in "
+                                   "metres the network was trained with, or leave the key out")
+        neighbor_dist = float(neighbor_dist)
+    return ModelSpec(source, role, n, m, tuple(raw["inputs"]), tuple(raw["outputs"]), image, neighbor_dist)
 
 
 def load_spec(path: str | Path) -> ModelSpec:
@@ -229,8 +246,12 @@ class NeuralModel:
 
     def velocity(self, view: WorldView, goal: Goal, neighbor_dist: float = DEFAULT_NEIGHBOR_DIST,
                  neighbors: Neighbors | None = None) -> tuple[np.ndarray, Neighbors]:
-        """(sel_vel, the neighbours fed in) for the UAV `view.own` and `goal`."""
+        """(sel_vel, the neighbours fed in) for the UAV `view.own` and `goal`.
+
+        `neighbor_dist` is used only when the spec does not carry the trained one."""
         spec = self.spec
+        if spec.neighbor_dist is not None:
+            neighbor_dist = spec.neighbor_dist
         if neighbors is None:
             neighbors = select_neighbors(view, spec.n_neighbors, spec.n_obstacles, neighbor_dist)
         vector = build_inputs(view, goal, spec.role, spec.n_neighbors, spec.n_obstacles, neighbor_dist, neighbors)
