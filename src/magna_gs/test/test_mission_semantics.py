@@ -225,3 +225,19 @@ def test_a_container_repeated_per_agent_gives_its_uav_to_the_actions_inside():
     with pytest.raises(MissionError, match=r"test.json: State_Machine\[0\]: '2_each' is never reached from "
                                            r"'1_each' \(the first state of MISSION\)"):
         load(mission(dict(each, outcomes={"landed": "completed"})))
+
+
+def test_a_model_path_among_the_values_travels_as_text_value():
+    # the AlgorithmControl service carries numbers in values, so the NAI's "model" parameter moves to text_value
+    state = {"type": "CBState", "state_type": "algorithm_control", "name": "nn", "ids": "all", "ids_var": "agent",
+             "parameters": {"name": "neural_network", "action": "set", "params": ["model", "neighborDist"],
+                            "values": ["/nets/best.pt", 6.0]}, "outcomes": {"completed": "completed"}}
+    (node,) = load(mission(state)).mission.root
+    assert (node.parameters.params, node.parameters.values, node.parameters.text_value) == \
+        (("neighborDist",), (6.0,), "/nets/best.pt")
+    state["parameters"] |= {"values": [3, 6.0]}
+    with pytest.raises(MissionError, match=r"values\[0\] \(model\) is 3: give the model's path once, as a string"):
+        load(mission(state))
+    state["parameters"] |= {"values": ["/a.pt", 6.0], "text_value": "/b.pt"}
+    with pytest.raises(MissionError, match="give the model's path once"):
+        load(mission(state))

@@ -565,6 +565,17 @@ def _algorithm_control(f: _Fields):
         f.fail("values", f"expected a list of values, one per name in params, got {values!r}")
     elif len(params) != len(values):
         f.fail("values", f"{len(values)} values for {len(params)} names in params; give one value per name")
+    elif "model" in params:
+        # the service carries numbers in values and text in text_value: a model path given as the
+        # parameter "model" (as the NAI itself accepts) travels as text_value
+        k = params.index("model")
+        model = values[k]
+        if not isinstance(model, str) or (text_value and text_value != model):
+            f.fail("values", f"values[{k}] (model) is {model!r}: give the model's path once, as a string "
+                             "(here or in text_value)")
+        else:
+            text_value = model
+            params, values = params[:k] + params[k + 1:], values[:k] + values[k + 1:]
     if not f.ok or name is None or action is None:
         return None
     return AlgorithmControlParams(name, action, tuple(params), tuple(values), text_value)
