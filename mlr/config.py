@@ -1,0 +1,257 @@
+"""The hyperparameter file (YAML or JSON) and its sweep: one `RunConfig` per combination.
+
+Every key is optional except the dataset's world, subworld, mission and submission (the
+table in mlr/README.md lists them with their defaults). Any value may be a list to sweep:
+for a key whose value is a number or a word, a list is a sweep (`learning_rate: [1e-3,
+1e-2]`); for a key whose value is already a list (`datasets`, `hidden_layers`,
+`image_size`, `split`), a list of lists is a sweep (`hidden_layers: [[10, 10], [20, 30,
+20]]`). Every combination of the swept values is trained, in the file's key order.
+"""
+from __future__ import annotations
+
+import itertools
+import json
+import math
+import re
+from dataclasses import asdict, dataclass, fields
+from pathlib import Path
+
+from mlr.pickler import Selection, Teacher
+
+ALGORITHM_ALIASES = {"orca3": "orca3d"}
+MODELS = ("mlp", "cnn")
+OPTIMIZERS = ("adam", "sgd")
+ACTIVATIONS = ("relu", "tanh")
+PADDINGS = ("same", "valid")
+POOLINGS = ("max", "avg", "none")
+SCHEDULES = ("constant", "cosine")
+LOSSES = ("mse", "l1", "norm")
+LIST_KEYS = frozenset({"datasets", "hidden_layers", "image_size", "split"})
+REQUIRED = ("world", "subworld", "mission", "submission")
+
+
+class ConfigError(ValueError):
+    """A config that cannot be trained; the message names the file, the key and the fix."""
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """One combination of hyperparameters: everything one training run depends on."""
+
+    # which simulations
+    world: str
+    subworld: str
+    mission: str
+    submission: str
+    name: str = "default"
+    datasets: tuple[int, ...] = (1,)
+    data_root: str = "~/magna_data"
+    source: str = "csv"  # csv: the recorder CSVs; bag: rebuilt from simulation.bag
+    # the teacher and the input vector
+    role: str = "path"
+    algorithm: str = "orca3d"
+    n_neighbors: int = 1
+    n_obstacles: int = 0
+    neighbor_dist: float = 6.0
+    fvi: int = 0
+    # preprocessing
+    split: tuple[float, float, float] = (0.7, 0.2, 0.1)
+    seed: int = 0
+    # the network
+    model: str = "mlp"
+    hidden_layers: tuple[int, ...] = (20, 30, 20)
+    activation: str = "relu"
+    image_size: tuple[int, int] = (32, 32)
+    conv_depth: int = 2  # convolutional layers
+    conv_channels: int = 8  # filters of the first layer; each further layer doubles them
+    patch_size: int = 5
+    padding: str = "same"
+    pooling: str = "max"
+    # training
+    optimizer: str = "adam"
+    learning_rate: float = 1e-3
+    lr_schedule: str = "constant"  # cosine: decays to 0 over the steps (finer final fit)
+    loss: str = "mse"  # mse; l1; norm: mean Euclidean error of the (normalised) velocity, like accuracy's test
+    batch_size: int = 500
+    steps: int = 20000
+    eval_every: int = 1000
+    threads: int = 1
+
+    @property
+    def selection(self) -> Selection:
+        return Selection(Path(self.data_root).expanduser(), self.world, self.subworld, self.mission,
+                         self.submission, self.name, tuple(self.datasets))
+
+    @property
+    def teacher(self) -> Teacher:
+        return Teacher(self.role, self.algorithm, self.n_neighbors, self.n_obstacles, self.neighbor_dist, self.fvi,
+                       tuple(self.image_size) if self.model == "cnn" else None)
+
+    def as_dict(self) -> dict:
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
+
+
+@dataclass(frozen=True)
+class Sweep:
+    """A config file expanded: its runs, and which keys vary between them."""
+
+    source: Path
+    name: str  # the file's stem: names the output folder and the exported network
+    runs: tuple[RunConfig, ...]
+    swept: tuple[str, ...]
+
+    def run_name(self, index: int) -> str:
+        """`r03_hidden_layers=20-30-20_learning_rate=0.001`: the run's number and its swept values."""
+        run = self.runs[index]
+        parts = [f"{key}={_short(getattr(run, key))}" for key in self.swept]
+        return re.sub(r"[^\w.=+-]", "_", "_".join([f"r{index:02d}", *parts]))[:120]
+
+
+def _short(value) -> str:
+    if isinstance(value, tuple | list):
+        return "-".join(_short(v) for v in value)
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
+_FIELDS = {f.name: f for f in fields(RunConfig)}
+
+
+def _read(path: Path) -> dict:
+    try:
+        text = path.read_text()
+    except OSError as err:
+        raise ConfigError(f"{path}: cannot read the config: {err.strerror}") from None
+    try:
+        if path.suffix.lower() == ".json":
+            raw = json.loads(text)
+        else:
+            import yaml
+
+            raw = yaml.safe_load(text)
+    except Exception as err:  # yaml.YAMLError / json.JSONDecodeError: say where
+        raise ConfigError(f"{path}: not valid {'JSON' if path.suffix.lower() == '.json' else 'YAML'}: {err}") \
+            from None
+    if not isinstance(raw, dict):
+        raise ConfigError(f"{path}: the top level must be a mapping of hyperparameters (world: Gym, ...)")
+    return raw
+
+
+def _is_sweep(key: str, value) -> bool:
+    if key in LIST_KEYS:
+        return isinstance(value, list) and bool(value) and all(isinstance(v, list) for v in value)
+    return isinstance(value, list)
+
+
+def _check(path: Path, key: str, value):
+    """The value as RunConfig holds it; ConfigError names the file, the key and what to give."""
+    where = f"{path}: {key}"
+
+    def fail(what: str):
+        raise ConfigError(f"{where} is {value!r}: give {what}")
+
+    def whole(v, low=0):
+        if isinstance(v, bool) or not isinstance(v, int) or v < low:
+            fail(f"a whole number >= {low}")
+        return v
+
+    def positive(v):
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) or v <= 0:
+            fail("a positive number")
+        return float(v)
+
+    def word(v, choices=None):
+        if not isinstance(v, str) or not v.strip():
+            fail("a name" if choices is None else f"one of {', '.join(choices)}")
+        v = v.strip()
+        if choices is not None and v not in choices:
+            fail(f"one of {', '.join(choices)}")
+        return v
+
+    if key in ("world", "subworld", "mission", "submission", "name", "data_root"):
+        return word(value)
+    if key == "source":
+        return word(value, ("csv", "bag"))
+    if key == "role":
+        return word(value, ("path", "agent_ad", "agent_ap"))
+    if key == "algorithm":
+        value = ALGORITHM_ALIASES.get(value, value)
+        return word(value, ("orca3d", "simple", "neural_network"))
+    if key in ("n_neighbors", "n_obstacles", "fvi", "seed"):
+        return whole(value)
+    if key in ("batch_size", "steps", "eval_every", "threads", "conv_depth", "conv_channels", "patch_size"):
+        return whole(value, 1)
+    if key in ("neighbor_dist", "learning_rate"):
+        return positive(value)
+    if key == "model":
+        return word(value, MODELS)
+    if key == "optimizer":
+        return word(value, OPTIMIZERS)
+    if key == "activation":
+        return word(value, ACTIVATIONS)
+    if key == "padding":
+        return word(value, PADDINGS)
+    if key == "pooling":
+        return word(value, POOLINGS)
+    if key == "lr_schedule":
+        return word(value, SCHEDULES)
+    if key == "loss":
+        return word(value, LOSSES)
+    if key == "datasets":
+        if not isinstance(value, list) or not value:
+            fail("a list of dataset numbers, e.g. [1, 2]")
+        return tuple(whole(v, 1) for v in value)
+    if key == "hidden_layers":
+        if not isinstance(value, list) or not value:
+            fail("a list of layer widths, e.g. [20, 30, 20]")
+        return tuple(whole(v, 1) for v in value)
+    if key == "image_size":
+        if not isinstance(value, list) or len(value) != 2:
+            fail("[height, width] in pixels")
+        return tuple(whole(v, 4) for v in value)
+    if key == "split":
+        if not isinstance(value, list) or len(value) != 3 or any(
+                isinstance(v, bool) or not isinstance(v, int | float) or v < 0 for v in value) \
+                or not math.isclose(sum(value), 1.0, abs_tol=1e-6) or value[0] <= 0 or value[2] <= 0:
+            fail("[train, validation, test] shares that add up to 1, e.g. [0.7, 0.2, 0.1]")
+        return tuple(float(v) for v in value)
+    raise AssertionError(key)
+
+
+def load_sweep(path: str | Path, overrides: dict | None = None) -> Sweep:
+    """Read a config file (plus `overrides`, e.g. from the command line) into its runs."""
+    path = Path(path)
+    raw = _read(path)
+    raw.update(overrides or {})
+    unknown = [key for key in raw if key not in _FIELDS]
+    if unknown:
+        raise ConfigError(f"{path}: unknown key {unknown[0]!r}: known keys are {', '.join(_FIELDS)} "
+                          "(mlr/README.md, 'The config file')")
+    missing = [key for key in REQUIRED if key not in raw]
+    if missing:
+        raise ConfigError(f"{path}: {missing[0]} is missing: say which simulations to learn from "
+                          f"({', '.join(REQUIRED)}, as given to magna run)")
+    choices: dict[str, list] = {}
+    for key, value in raw.items():
+        values = value if _is_sweep(key, value) else [value]
+        if not values:
+            raise ConfigError(f"{path}: {key} is an empty list: give a value, or a list of values to sweep")
+        choices[key] = [_check(path, key, v) for v in values]
+    swept = tuple(key for key, values in choices.items() if len(values) > 1)
+    runs = []
+    for combination in itertools.product(*choices.values()):
+        values = dict(zip(choices, combination, strict=True))
+        run = RunConfig(**values)
+        try:
+            run.teacher  # noqa: B018 - checks the teacher's counts and role
+        except ValueError as err:
+            raise ConfigError(f"{path}: {err}") from None
+        if run.model == "cnn" and run.padding == "valid":
+            side = min(run.image_size)
+            for _ in range(run.conv_depth):
+                side = side - run.patch_size + 1
+                side = side // 2 if run.pooling != "none" else side
+            if side < 1:
+                raise ConfigError(f"{path}: image_size {list(run.image_size)} is too small for {run.conv_depth} "
+                                  f"valid convolutions of patch {run.patch_size}: use padding same or a larger image")
+        runs.append(run)
+    return Sweep(path, path.stem, tuple(runs), swept)

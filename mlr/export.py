@@ -1,0 +1,137 @@
+"""Export: a trained run as the TorchScript file and JSON spec the NAI flies
+(format: magna_uav.nai.neural).
+
+The exported module takes raw inputs (m, m/s; depth in metres) and answers sel_vel in m/s:
+the normalisation and its inverse are inside it, as buffers. After writing, the export is
+checked: the file is loaded back with torch.jit.load and through the NAI's own loader, and
+both must give the trained network's outputs on the test samples (within 1e-5 m/s); a
+mismatch removes the files and raises.
+"""
+from __future__ import annotations
+
+import json
+import os
+import warnings
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import nn
+
+from magna_uav.nai.inputs import input_names, output_names
+from magna_uav.nai.neural import load_model, spec_path
+from mlr.config import RunConfig
+from mlr.preprocess import Normalizer, Prepared
+
+TOLERANCE = 1e-5  # m/s: float32 round-off between the eager network and its TorchScript copy
+CHECK_SAMPLES = 2000
+
+
+def _buffer(values) -> torch.Tensor:
+    return torch.as_tensor(np.asarray(values, dtype=np.float32))
+
+
+class VectorNetwork(nn.Module):
+    """sel_vel = net((x - x_mean) / x_scale) * y_scale + y_mean."""
+
+    def __init__(self, net: nn.Module, x_norm: Normalizer, y_norm: Normalizer):
+        super().__init__()
+        self.net = net
+        self.register_buffer("x_mean", _buffer(x_norm.mean))
+        self.register_buffer("x_scale", _buffer(x_norm.scale))
+        self.register_buffer("y_mean", _buffer(y_norm.mean))
+        self.register_buffer("y_scale", _buffer(y_norm.scale))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.net((x - self.x_mean) / self.x_scale) * self.y_scale + self.y_mean
+
+
+class ImageNetwork(nn.Module):
+    """The same for CNN+MLP networks: the depth image is normalised too (one mean and scale)."""
+
+    def __init__(self, net: nn.Module, x_norm: Normalizer, y_norm: Normalizer, image_norm: Normalizer):
+        super().__init__()
+        self.net = net
+        self.register_buffer("x_mean", _buffer(x_norm.mean))
+        self.register_buffer("x_scale", _buffer(x_norm.scale))
+        self.register_buffer("y_mean", _buffer(y_norm.mean))
+        self.register_buffer("y_scale", _buffer(y_norm.scale))
+        self.register_buffer("image_mean", _buffer(image_norm.mean))
+        self.register_buffer("image_scale", _buffer(image_norm.scale))
+
+    def forward(self, image: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
+        image = (image - self.image_mean) / self.image_scale
+        return self.net(image, (x - self.x_mean) / self.x_scale) * self.y_scale + self.y_mean
+
+
+def wrap(net: nn.Module, prepared: Prepared) -> nn.Module:
+    net.eval()
+    if prepared.image_norm is None:
+        return VectorNetwork(net, prepared.x_norm, prepared.y_norm).eval()
+    return ImageNetwork(net, prepared.x_norm, prepared.y_norm, prepared.image_norm).eval()
+
+
+def spec_for(run: RunConfig, about: dict | None = None) -> dict:
+    return {"role": run.role, "n_neighbors": run.n_neighbors, "n_obstacles": run.n_obstacles,
+            "inputs": input_names(run.role, run.n_neighbors, run.n_obstacles), "outputs": output_names(),
+            "image": {"height": run.image_size[0], "width": run.image_size[1]} if run.model == "cnn" else None,
+            "neighbor_dist": run.neighbor_dist, "about": about or {}}
+
+
+def _raw_test_inputs(prepared: Prepared) -> tuple[np.ndarray, np.ndarray | None]:
+    part = prepared.test if len(prepared.test) else prepared.val
+    x = prepared.x_norm.invert(part.x[:CHECK_SAMPLES])
+    images = None if part.images is None else prepared.image_norm.invert(part.images[:CHECK_SAMPLES])
+    return x.astype(np.float32), None if images is None else images.astype(np.float32)
+
+
+def export(net: nn.Module, run: RunConfig, prepared: Prepared, path: str | Path, about: dict | None = None,
+           overwrite: bool = False) -> Path:
+    """Write `path` (.pt) and its spec (.json); check them (module docstring). Returns the .pt path."""
+    path = Path(path)
+    if path.suffix != ".pt":
+        raise ValueError(f"{path}: an exported network is a .pt file (its spec goes beside it as .json)")
+    spec_file = spec_path(path)
+    if not overwrite:
+        for target in (path, spec_file):
+            if target.exists():
+                raise FileExistsError(f"{target}: already exists; pass --overwrite to replace it, or choose "
+                                      "another path")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    module = wrap(net, prepared)
+    tmp_pt, tmp_json = path.with_name(f".{path.name}.tmp"), spec_file.with_name(f".{spec_file.name}.tmp")
+    try:
+        with warnings.catch_warnings():  # torch 2.13 calls TorchScript deprecated; it is the format the NAI flies
+            warnings.filterwarnings("ignore", category=DeprecationWarning)
+            torch.jit.script(module).save(str(tmp_pt))
+        tmp_json.write_text(json.dumps(spec_for(run, about), indent=2) + "\n")
+        os.replace(tmp_pt, path)
+        os.replace(tmp_json, spec_file)
+        check_export(module, path, prepared)
+    except BaseException:
+        for leftover in (tmp_pt, tmp_json, path, spec_file):
+            leftover.unlink(missing_ok=True)
+        raise
+    return path
+
+
+def check_export(module: nn.Module, path: Path, prepared: Prepared) -> float:
+    """The largest difference (m/s) between the trained module and the exported file; raises above TOLERANCE."""
+    x, images = _raw_test_inputs(prepared)
+    with torch.no_grad():
+        xt = torch.from_numpy(x)
+        it = None if images is None else torch.from_numpy(images).unsqueeze(1)
+        expected = (module(xt) if it is None else module(it, xt)).numpy()
+        with warnings.catch_warnings():
+            warnings.filterwarnings("ignore", category=DeprecationWarning)
+            loaded = torch.jit.load(str(path))
+        got = (loaded(xt) if it is None else loaded(it, xt)).numpy()
+    worst = float(np.max(np.abs(got - expected))) if len(x) else 0.0
+    nai = load_model(path)  # the loader the UAV managers use: spec checks and one zero run
+    for k in range(min(len(x), 20)):
+        one = nai.predict(x[k], None if images is None else images[k])
+        worst = max(worst, float(np.max(np.abs(one - expected[k]))))
+    if not worst <= TOLERANCE:
+        raise RuntimeError(f"{path}: the exported network differs from the trained one by {worst:.3g} m/s "
+                           f"(allowed {TOLERANCE:g}); not exported")
+    return worst

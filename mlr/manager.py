@@ -1,0 +1,159 @@
+"""Manager: a config file -> pickled and prepared data (cached) -> every run of its sweep -> the
+best run exported for the NAI.
+
+Output, under `OUT` (default `<data_root>/mlr/runs/<config stem>`):
+    <run name>/           one folder per run (mlr.train)
+    results.csv, .md      one row per run
+    best.json             the chosen run (best validation accuracy, then lower validation loss)
+    <config stem>.pt/.json  the best network, exported (mlr.export)
+
+A finished run whose config is unchanged is reused, not trained again; a finished run with a
+different config, or an existing export, is kept unless `overwrite` is given.
+"""
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+import shutil
+import sys
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+from mlr import cache
+from mlr.config import RunConfig, Sweep
+from mlr.pickler import PicklerError, find_simulations
+from mlr.train import RunResult, load_trained, train_run
+
+Log = Callable[[str], None]
+
+
+def _stderr(message: str) -> None:
+    print(message, file=sys.stderr, flush=True)
+
+
+@dataclass
+class SweepOutcome:
+    out: Path
+    results: list[RunResult]
+    best: RunResult | None
+    exported: Path | None
+    samples: dict[str, int]  # data key -> samples, per distinct dataset of the sweep
+
+
+def _data_key(run: RunConfig) -> tuple:
+    """What pickling and preprocessing depend on: runs equal here share their data."""
+    return (run.selection, run.teacher, run.source, run.split, run.seed)
+
+
+def _finished(run_dir: Path, run: RunConfig) -> RunResult | None:
+    result_file = run_dir / "result.json"
+    if not result_file.is_file():
+        return None
+    saved = json.loads(result_file.read_text())
+    if saved.get("config") != run.as_dict():
+        return None
+    return RunResult(**saved["result"])
+
+
+def _table(results: list[RunResult], runs: list[RunConfig], swept: tuple[str, ...]) -> tuple[str, str]:
+    header = ["run", *swept, "best step", "val loss", "val acc", "test loss", "test acc", "params", "steps/s", "min"]
+    rows = []
+    for result, run in zip(results, runs, strict=True):
+        values = [getattr(run, key) for key in swept]
+        rows.append([result.name, *["-".join(map(str, v)) if isinstance(v, tuple) else v for v in values],
+                     result.best_step, f"{result.val_loss:.5f}", f"{result.val_accuracy * 100:.2f}%",
+                     f"{result.test_loss:.5f}", f"{result.test_accuracy * 100:.2f}%", result.parameters,
+                     f"{result.steps_per_second:.0f}", f"{result.wall_seconds / 60:.1f}"])
+    out = io.StringIO()
+    csv.writer(out, lineterminator="\n").writerows([header, *rows])
+    md = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    md += ["| " + " | ".join(map(str, row)) + " |" for row in rows]
+    return out.getvalue(), "\n".join(md) + "\n"
+
+
+def _write(path: Path, text: str) -> None:
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+
+def run_sweep(sweep: Sweep, out: Path | None = None, overwrite: bool = False, force_data: bool = False,
+              export_best: bool = True, progress: bool = True, log: Log = _stderr) -> SweepOutcome:
+    from tqdm import tqdm
+
+    from mlr.export import export
+
+    first = sweep.runs[0]
+    out = Path(out) if out is not None else Path(first.data_root).expanduser() / "mlr" / "runs" / sweep.name
+    names = [sweep.run_name(i) for i in range(len(sweep.runs))]
+    # refuse before any work: a finished run of another config, or an existing export, is somebody's data
+    if not overwrite:
+        for name, run in zip(names, sweep.runs, strict=True):
+            result_file = out / name / "result.json"
+            if result_file.is_file() and _finished(out / name, run) is None:
+                raise FileExistsError(f"{result_file}: a finished run with another config is there; pass "
+                                      "--overwrite to train it again, or give another --out")
+        if export_best and (out / f"{sweep.name}.pt").exists():
+            raise FileExistsError(f"{out / (sweep.name + '.pt')}: an exported network is there; pass --overwrite "
+                                  "to replace it, or give another --out")
+    out.mkdir(parents=True, exist_ok=True)
+    data: dict[tuple, tuple] = {}
+    counts: dict[str, int] = {}
+    results: list[RunResult] = []
+    for index, (name, run) in enumerate(zip(names, sweep.runs, strict=True)):
+        key = _data_key(run)
+        if key not in data:
+            sims, skipped = find_simulations(run.selection)
+            for reason in skipped:
+                log(f"left out {reason}")
+            if not sims:
+                raise PicklerError(f"{run.selection.series_dir}: no usable simulation in datasets "
+                                   f"{list(run.datasets)} (each needs world.json and a successful result.json)")
+            samples, pickled_key, hit = cache.cached_samples(
+                run.selection, run.teacher, run.source, sims, force=force_data,
+                progress=lambda it: tqdm(it, desc="pickling", unit="sim", disable=not progress, leave=False))
+            log(f"data: {len(samples)} samples of role {run.role} flown with {run.algorithm} from {len(sims)} "
+                f"simulations ({'cached' if hit else 'pickled'}; {len(skipped)} left out)")
+            prepared, hit = cache.cached_prepared(samples, pickled_key, run.selection.data_root, run.split, run.seed,
+                                                  force=force_data)
+            log(f"split: {len(prepared.train)} train, {len(prepared.val)} validation, {len(prepared.test)} test "
+                f"({'cached' if hit else 'prepared'})")
+            data[key] = (prepared, len(samples))
+            counts[pickled_key] = len(samples)
+        prepared = data[key][0]
+        run_dir = out / name
+        reused = None if overwrite else _finished(run_dir, run)
+        if reused is not None:
+            log(f"[{index + 1}/{len(sweep.runs)}] {name}: finished before, reused (test accuracy "
+                f"{reused.test_accuracy * 100:.2f}%)")
+            results.append(reused)
+            continue
+        if run_dir.exists():
+            shutil.rmtree(run_dir)  # an interrupted run, or --overwrite
+        result = train_run(run, prepared, run_dir, name, progress=progress)
+        log(f"[{index + 1}/{len(sweep.runs)}] {name}: test accuracy {result.test_accuracy * 100:.2f}%, val "
+            f"{result.val_accuracy * 100:.2f}%, {result.steps} steps in {result.wall_seconds / 60:.1f} min "
+            f"({result.steps_per_second:.0f} steps/s)")
+        results.append(result)
+    table_csv, table_md = _table(results, list(sweep.runs), sweep.swept)
+    _write(out / "results.csv", table_csv)
+    _write(out / "results.md", table_md)
+    best_index = max(range(len(results)), key=lambda i: (results[i].val_accuracy, -results[i].val_loss))
+    best = results[best_index]
+    _write(out / "best.json", json.dumps({"run": best.name, "result": asdict(best),
+                                          "config": sweep.runs[best_index].as_dict()}, indent=2) + "\n")
+    exported = None
+    if export_best:
+        run = sweep.runs[best_index]
+        prepared = data[_data_key(run)][0]
+        net, _ = load_trained(Path(best.directory), prepared.train.x.shape[1])
+        about = {"sweep": str(sweep.source), "run": best.name, "test_accuracy": best.test_accuracy,
+                 "val_accuracy": best.val_accuracy, "teacher": f"{run.role}/{run.algorithm}",
+                 "data": str(run.selection.series_dir), "datasets": list(run.datasets), "fvi": run.fvi}
+        exported = export(net, run, prepared, out / f"{sweep.name}.pt", about=about, overwrite=overwrite)
+        log(f"best: {best.name} (validation accuracy {best.val_accuracy * 100:.2f}%, test "
+            f"{best.test_accuracy * 100:.2f}%), exported to {exported}")
+    return SweepOutcome(out, results, best, exported, counts)

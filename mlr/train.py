@@ -1,0 +1,206 @@
+"""Trainer: one run = one RunConfig on prepared data, with TensorBoard logs and checkpoints.
+
+Loss, on the normalised labels: mean squared error (`mse`), mean absolute error (`l1`), or the
+mean Euclidean norm of the error (`norm`, closest to accuracy's within-a-radius test). Every
+`eval_every` steps the validation part is measured (loss and accuracy, mlr.metrics) and weight
+and bias histograms are logged; the best validation accuracy (ties: lower validation loss) is
+kept in `checkpoint.pt`. At the end the best weights are restored and measured on the test part.
+
+A run directory holds:
+    tb/               TensorBoard: loss/train, loss/val, accuracy/val, accuracy/test, histograms,
+                      the graph, and the hyperparameters with the final metrics (HPARAMS tab)
+    checkpoint.pt     {"model": state_dict, "step", "val_accuracy", "val_loss", "config"}
+    result.json       the run's metrics and its config
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import nn
+
+from mlr.config import RunConfig
+from mlr.metrics import accuracy
+from mlr.models import build_model, parameter_count
+from mlr.preprocess import Part, Prepared
+
+EVAL_BATCH = 8192
+LOG_EVERY = 100  # steps between training-loss points in TensorBoard
+
+
+@dataclass
+class RunResult:
+    name: str
+    directory: str
+    steps: int
+    best_step: int
+    train_loss: float  # mean of the last logged training losses
+    val_loss: float
+    val_accuracy: float
+    test_loss: float
+    test_accuracy: float
+    parameters: int
+    wall_seconds: float
+    steps_per_second: float
+
+    def metrics(self) -> dict[str, float]:
+        return {"loss/val": self.val_loss, "accuracy/val": self.val_accuracy, "loss/test": self.test_loss,
+                "accuracy/test": self.test_accuracy}
+
+
+def _norm_loss(out: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    return torch.linalg.vector_norm(out - target, dim=1).mean()
+
+
+LOSSES = {"mse": nn.functional.mse_loss, "l1": nn.functional.l1_loss, "norm": _norm_loss}
+
+
+def _tensors(part: Part) -> tuple[torch.Tensor, ...]:
+    x = torch.from_numpy(np.ascontiguousarray(part.x, dtype=np.float32))
+    y = torch.from_numpy(np.ascontiguousarray(part.y, dtype=np.float32))
+    if part.images is None:
+        return x, y
+    images = torch.from_numpy(np.ascontiguousarray(part.images, dtype=np.float32)).unsqueeze(1)
+    return x, y, images
+
+
+def _forward(model: nn.Module, x: torch.Tensor, images: torch.Tensor | None) -> torch.Tensor:
+    return model(x) if images is None else model(images, x)
+
+
+def evaluate(model: nn.Module, part: Part, prepared: Prepared) -> tuple[float, float, np.ndarray]:
+    """(loss on normalised labels, accuracy in m/s, predictions in m/s) of `model` on `part`."""
+    if len(part) == 0:
+        return math.nan, math.nan, np.zeros((0, 3))
+    tensors = _tensors(part)
+    model.eval()
+    outputs = []
+    with torch.no_grad():
+        for start in range(0, len(part), EVAL_BATCH):
+            images = tensors[2][start:start + EVAL_BATCH] if len(tensors) == 3 else None
+            outputs.append(_forward(model, tensors[0][start:start + EVAL_BATCH], images))
+    model.train()
+    out = torch.cat(outputs)
+    loss = float(nn.functional.mse_loss(out, tensors[1]))
+    predicted = prepared.y_norm.invert(out.numpy())
+    return loss, accuracy(predicted, part.y_raw, part.max_speed), predicted
+
+
+def _optimizer(run: RunConfig, model: nn.Module) -> torch.optim.Optimizer:
+    if run.optimizer == "adam":
+        return torch.optim.Adam(model.parameters(), lr=run.learning_rate)
+    return torch.optim.SGD(model.parameters(), lr=run.learning_rate)
+
+
+def _save_atomically(obj, path: Path) -> None:
+    tmp = path.with_name(f".{path.name}.tmp")
+    torch.save(obj, tmp)
+    os.replace(tmp, path)
+
+
+def _hparams(run: RunConfig) -> dict:
+    """TensorBoard takes numbers, strings and bools: lists become strings."""
+    return {k: ("-".join(map(str, v)) if isinstance(v, list) else v) for k, v in run.as_dict().items()}
+
+
+def train_run(run: RunConfig, prepared: Prepared, run_dir: Path, name: str, progress: bool = True) -> RunResult:
+    """Train one network (module docstring); returns its metrics, also written to run_dir/result.json."""
+    from torch.utils.tensorboard import SummaryWriter
+    from tqdm import tqdm
+
+    run_dir = Path(run_dir)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    torch.set_num_threads(run.threads)
+    torch.manual_seed(run.seed)
+    train = _tensors(prepared.train)
+    n = len(prepared.train)
+    if n == 0:
+        raise ValueError(f"run {name}: the training part is empty")
+    batch = min(run.batch_size, n)
+    model = build_model(run, prepared.train.x.shape[1])
+    optimizer = _optimizer(run, model)
+    schedule = torch.optim.lr_scheduler.CosineAnnealingLR(optimizer, run.steps) if run.lr_schedule == "cosine" \
+        else None
+    loss_fn = LOSSES[run.loss]
+    writer = SummaryWriter(log_dir=str(run_dir / "tb"))
+    example = (train[2][:1], train[0][:1]) if len(train) == 3 else train[0][:1]
+    try:
+        writer.add_graph(model, example)
+    except Exception as err:  # the graph is a nicety; never lose a run over it
+        writer.add_text("graph", f"not drawn: {err}")
+    best = {"val_accuracy": -1.0, "val_loss": math.inf, "step": 0}
+    recent: list[float] = []
+    generator = torch.Generator().manual_seed(run.seed)
+    order, position = None, n
+    started = time.monotonic()
+    bar = tqdm(total=run.steps, desc=name, unit="step", disable=not progress, leave=False, mininterval=0.5,
+               smoothing=0.05)
+    shuffled: tuple[torch.Tensor, ...] = ()
+    for step in range(1, run.steps + 1):
+        if position + batch > n:  # a new epoch: one shuffle, then contiguous slices (cheaper than gathers)
+            order = torch.randperm(n, generator=generator)
+            shuffled = tuple(t[order] for t in train)
+            position = 0
+        xb, yb = shuffled[0][position:position + batch], shuffled[1][position:position + batch]
+        images = shuffled[2][position:position + batch] if len(shuffled) == 3 else None
+        position += batch
+        loss = loss_fn(_forward(model, xb, images), yb)
+        optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        optimizer.step()
+        if schedule is not None:
+            schedule.step()
+        if step % LOG_EVERY == 0 or step == run.steps:
+            value = loss.item()
+            if not math.isfinite(value):
+                bar.close()
+                writer.close()
+                raise FloatingPointError(f"run {name}: the training loss became {value} at step {step}: lower "
+                                         f"learning_rate ({run.learning_rate:g})")
+            writer.add_scalar("loss/train", value, step)
+            recent = (recent + [value])[-10:]
+            bar.update(step - bar.n)
+            bar.set_postfix(loss=f"{value:.4g}", val_acc=f"{best['val_accuracy']:.3f}", refresh=False)
+        if step % run.eval_every == 0 or step == run.steps:
+            val_loss, val_acc, _ = evaluate(model, prepared.val, prepared)
+            writer.add_scalar("loss/val", val_loss, step)
+            writer.add_scalar("accuracy/val", val_acc, step)
+            for param_name, param in model.named_parameters():
+                writer.add_histogram(param_name.replace(".", "/"), param.detach(), step)
+            if (val_acc, -val_loss) > (best["val_accuracy"], -best["val_loss"]):
+                best = {"val_accuracy": val_acc, "val_loss": val_loss, "step": step}
+                _save_atomically({"model": model.state_dict(), "config": run.as_dict(), **best},
+                                 run_dir / "checkpoint.pt")
+    bar.close()
+    wall = time.monotonic() - started
+    model.load_state_dict(torch.load(run_dir / "checkpoint.pt", weights_only=True)["model"])
+    test_loss, test_acc, _ = evaluate(model, prepared.test, prepared)
+    writer.add_scalar("accuracy/test", test_acc, best["step"])
+    writer.add_scalar("loss/test", test_loss, best["step"])
+    result = RunResult(name, str(run_dir), run.steps, best["step"], float(np.mean(recent)) if recent else math.nan,
+                       best["val_loss"], best["val_accuracy"], test_loss, test_acc, parameter_count(model), wall,
+                       run.steps / wall if wall > 0 else math.inf)
+    writer.add_hparams(_hparams(run), result.metrics(), run_name=".")
+    writer.close()
+    tmp = run_dir / ".result.json.tmp"
+    sizes = {name: len(prepared.part(name)) for name in ("train", "val", "test")}
+    tmp.write_text(json.dumps({"result": asdict(result), "config": run.as_dict(), "samples": sizes}, indent=2) + "\n")
+    os.replace(tmp, run_dir / "result.json")
+    return result
+
+
+def load_trained(run_dir: Path, size_in: int) -> tuple[nn.Module, RunConfig]:
+    """The best weights of a finished run, in its network."""
+    checkpoint = torch.load(Path(run_dir) / "checkpoint.pt", weights_only=True)
+    config = checkpoint["config"]
+    run = RunConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in config.items()})
+    model = build_model(run, size_in)
+    model.load_state_dict(checkpoint["model"])
+    model.eval()
+    return model, run
