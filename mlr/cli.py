@@ -158,11 +158,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     exp.add_argument("--overwrite", action="store_true", help="replace existing files")
     exp.set_defaults(_mlr_run=cmd_export)
 
-    from mlr import thesis
-    try:
-        from mlr import fly
-    except ImportError:
-        return
+    from mlr import fly, thesis
 
     fly_parser = sub.add_parser("fly", help=fly.HELP, description=fly.HELP)
     fly.add_arguments(fly_parser)

@@ -1,0 +1,445 @@
+"""mlr.fly: the network's mission, the metrics of a dataset, the comparison, the batches it starts and
+how it stops them; and one real run of both batches (one simulation each) through `magna run`.
+
+The corpus missions are read in place from ../shared/ros_magna_corpus (tests.support.CORPUS).
+"""
+import json
+import math
+import os
+import signal
+import statistics
+import subprocess
+import sys
+import warnings
+from pathlib import Path
+
+import pytest
+
+from magna_master import storage
+from magna_uav.nai.inputs import DEFAULT_NEIGHBOR_DIST, input_names, output_names
+from magna_uav.recorder import columns, read_csv
+from mlr import fly
+from tests.support import CORPUS, ROOT, wait_until
+
+FOUR_CYLINDERS = CORPUS / "Missions" / "Gym" / "2UAVs_2paths_4_Cylinders.json"
+CENTRAL_CYLINDER = CORPUS / "Missions" / "Gym" / "2UAVs_2paths_Central_Cylinder.json"
+CROSSING = ROOT / "missions" / "Gym" / "2UAVs_Crossing_ORCA.json"
+SIMPLE_MISSION = ROOT / "tests" / "missions" / "Test" / "2UAVs_Head_On_Simple.json"
+MODEL = "/models/best/model.pt"
+WORLD = "Gym/Central_Obstacle_Torus"
+MISSION = "Gym/2UAVs_Crossing_ORCA"
+
+
+def read(path: Path):
+    return json.loads(path.read_text())
+
+
+def nn_parameters(model: str, neighbor_dist: float) -> dict:
+    return {"name": "neural_network", "action": "set", "params": ["neighborDist"], "values": [neighbor_dist],
+            "text_value": model}
+
+
+def make_model(folder: Path, max_speed: float = 2.0, neighbor_dist: float | None = None) -> Path:
+    """A TorchScript network flying straight to the goal (goal_pose_rel, saturated), with its spec."""
+    import torch
+
+    names = input_names("path", 1, 0)
+
+    class TowardsGoal(torch.nn.Module):
+        def __init__(self, first: int, speed: float):
+            super().__init__()
+            self.first, self.speed = first, speed
+
+        def forward(self, x):
+            goal = x[:, self.first:self.first + 3]
+            norm = torch.linalg.vector_norm(goal, dim=1, keepdim=True)
+            return goal * torch.clamp(self.speed / (norm + 1e-6), max=1.0)
+
+    folder.mkdir(parents=True, exist_ok=True)
+    model = folder / "model.pt"
+    with warnings.catch_warnings():  # torch 2.13 calls TorchScript deprecated; it is the format the NAI flies
+        warnings.filterwarnings("ignore", r"`torch\.jit\.\w+` is deprecated", DeprecationWarning)
+        torch.jit.save(torch.jit.script(TowardsGoal(names.index("goal_pose_rel.x"), max_speed)), str(model))
+    spec = {"role": "path", "n_neighbors": 1, "n_obstacles": 0, "inputs": names, "outputs": output_names(),
+            "image": None}
+    if neighbor_dist is not None:
+        spec["neighbor_dist"] = neighbor_dist
+    model.with_suffix(".json").write_text(json.dumps(spec))
+    return model
+
+
+# --- the network's mission ------------------------------------------------------------------------------------
+
+def test_the_default_neighbor_distance_is_the_nais():
+    assert fly.DEFAULT_NEIGHBOR_DIST == DEFAULT_NEIGHBOR_DIST
+
+
+def test_4_cylinders_corpus_mission_flies_the_network_where_it_set_orca(tmp_path):
+    original = read(FOUR_CYLINDERS)
+    variant, changes = fly.nn_variant(original, MODEL, source=FOUR_CYLINDERS)
+
+    assert original == read(FOUR_CYLINDERS), "the mission given is not modified"
+    assert [(c.where, c.state, c.was) for c in changes] == [("State_Machine[3]", "algorithm_control", "orca3 set")]
+    # the state gives only N_neighbors_aware: the NAI's default distance
+    assert changes[0].neighbor_dist == 6.0 and changes[0].neighbor_dist_from == "the default"
+    state = variant["State_Machine"][3]
+    assert state["parameters"] == nn_parameters(MODEL, 6.0)
+    assert {k: v for k, v in state.items() if k != "parameters"} == \
+        {k: v for k, v in original["State_Machine"][3].items() if k != "parameters"}  # ids, outcomes kept
+    state["parameters"] = original["State_Machine"][3]["parameters"]
+    assert variant == original, "nothing else changes"
+
+
+def test_central_cylinder_corpus_mission_keeps_its_distance_unless_the_spec_gives_one(tmp_path):
+    original = read(CENTRAL_CYLINDER)
+    variant, changes = fly.nn_variant(original, MODEL, source=CENTRAL_CYLINDER)
+    assert [c.where for c in changes] == ["State_Machine[5]"]
+    assert (changes[0].neighbor_dist, changes[0].neighbor_dist_from) == (6.0, "the mission's ORCA neighborDist")
+    assert variant["State_Machine"][5]["parameters"] == nn_parameters(MODEL, 6.0)
+
+    from_spec, changes = fly.nn_variant(original, MODEL, neighbor_dist=4.5, source=CENTRAL_CYLINDER)
+    assert (changes[0].neighbor_dist, changes[0].neighbor_dist_from) == (4.5, "the model's spec")
+    assert from_spec["State_Machine"][5]["parameters"] == nn_parameters(MODEL, 4.5)
+    assert "State_Machine[5] 'algorithm_control': orca3 set -> neural_network set, neighborDist 4.5" in str(changes[0])
+
+
+def test_the_variant_is_a_mission_the_ground_station_accepts(tmp_path):
+    from magna_gs.mission.loader import load_mission
+
+    variant, changes = fly.nn_variant(read(CROSSING), MODEL, source=CROSSING)
+    assert (changes[0].where, changes[0].neighbor_dist) == ("State_Machine[4]", 8.0)  # the mission's own 8 m
+    path = fly.write_variant(tmp_path, "Gym", "2UAVs_Crossing_ORCA", variant)
+    assert path == tmp_path / "missions" / "Gym" / "2UAVs_Crossing_ORCA_nn.json"
+    loaded = load_mission(path)  # MissionError on anything the ground station would refuse
+    controls = [n.parameters for n in loaded.mission.nodes() if getattr(n.parameters, "name", "") == "neural_network"]
+    assert [(c.action, c.params, c.values, c.text_value) for c in controls] == [("set", ("neighborDist",), (8.0,),
+                                                                                   MODEL)]
+
+
+def test_states_at_any_depth_are_replaced_and_orca_configure_stays():
+    configure = {"type": "CBState", "state_type": "algorithm_control", "name": "tune",
+                 "parameters": {"name": "orca3d", "action": "configure", "params": ["neighborDist"], "values": [5.0]}}
+    nested_set = {"type": "CBState", "state_type": "algorithm_control", "name": "deep",
+                  "parameters": {"name": "orca3d", "action": "set"}}
+    mission = {"Agents_Config": [], "State_Machine": [
+        configure,
+        {"type": "Concurrence", "name": "c", "occurrencies": [
+            {"type": "CBState", "state_type": "algorithm_control", "name": "inner",
+             "parameters": {"name": "orca3", "action": "set", "params": ["N_neighbors_aware"], "values": [2]}},
+            {"type": "Sequence", "name": "s", "occurrencies": [nested_set]},
+        ]},
+        {"type": "CBState", "state_type": "algorithm_control", "name": "plain",
+         "parameters": {"name": "simple", "action": "set"}},
+    ]}
+    variant, changes = fly.nn_variant(mission, MODEL)
+    assert [(c.where, c.state) for c in changes] == [("State_Machine[1].occurrencies[0]", "inner"),
+                                                      ("State_Machine[1].occurrencies[1].occurrencies[0]", "deep")]
+    # neither gives a distance: the one the mission's ORCA configure state gives
+    assert {(c.neighbor_dist, c.neighbor_dist_from) for c in changes} == {(5.0, "the mission's ORCA neighborDist")}
+    machine = variant["State_Machine"]
+    assert machine[0] == configure and machine[2] == mission["State_Machine"][2]
+    assert machine[1]["occurrencies"][0]["parameters"] == nn_parameters(MODEL, 5.0)
+    assert machine[1]["occurrencies"][1]["occurrencies"][0]["parameters"] == nn_parameters(MODEL, 5.0)
+    assert nested_set["parameters"] == {"name": "orca3d", "action": "set"}
+
+
+@pytest.mark.parametrize("mission", [SIMPLE_MISSION, CORPUS / "Missions" / "Gym" / "only_world.json"],
+                         ids=["simple", "only_world"])
+def test_a_mission_without_orca_is_refused_naming_the_file(mission):
+    with pytest.raises(fly.FlyError) as error:
+        fly.nn_variant(read(mission), MODEL, source=mission)
+    assert str(mission) in str(error.value) and "orca3" in str(error.value)
+    if mission == SIMPLE_MISSION:
+        assert "simple set at State_Machine[" in str(error.value)
+
+
+def test_a_relative_model_path_or_a_non_mission_is_refused():
+    with pytest.raises(fly.FlyError, match="relative"):
+        fly.nn_variant(read(CROSSING), "model.pt")
+    with pytest.raises(fly.FlyError, match="x.json: not a mission"):
+        fly.nn_variant({"Agents_Config": []}, MODEL, source="x.json")
+
+
+def test_the_variant_file_is_never_replaced_by_a_different_one_without_overwrite(tmp_path):
+    first, _ = fly.nn_variant(read(CROSSING), MODEL)
+    second, _ = fly.nn_variant(read(CROSSING), "/other/model.pt")
+    path = fly.write_variant(tmp_path, "Gym", "X", first)
+    assert read(path) == first
+    assert fly.write_variant(tmp_path, "Gym", "X", first) == path  # the same content: kept as it is
+    with pytest.raises(fly.FlyError, match="--overwrite"):
+        fly.write_variant(tmp_path, "Gym", "X", second)
+    assert read(path) == first
+    fly.write_variant(tmp_path, "Gym", "X", second, overwrite=True)
+    assert read(path) == second
+    assert sorted(p.name for p in path.parent.iterdir()) == ["X_nn.json"], "no temporary file left"
+
+
+# --- metrics on synthetic datasets --------------------------------------------------------------------------
+
+def write_uav_csv(path: Path, uav_id: int, other: int, flight: list[tuple[float, str, str]]) -> None:
+    """A recorder CSV by hand: one row per (time, role, outcome); every other column unknown."""
+    header = columns([other], n_obstacles=0)
+    blank = {name: "nan" for name in header}
+    blank.update({"uav_id": str(uav_id), "algorithm": "orca3d", "collided_with": "", "feasible": "", "outcome": "",
+                  "collision": "0", "out_of_bounds": "0", "low_battery": "0", "ual_state": "4"})
+    lines = [",".join(header)]
+    for t, role, outcome in flight:
+        row = dict(blank, time=repr(t), role=role, outcome=outcome)
+        lines.append(",".join(row[name] for name in header))
+    path.write_text("\n".join(lines) + "\n")
+
+
+def flight(paths: list[tuple[float, float, str]]) -> list[tuple[float, str, str]]:
+    """take-off, then each path role (start, seconds, outcome) at 10 steps per second, then landing."""
+    rows = [(0.0, "take_off", ""), (0.5, "take_off", "succeeded")]
+    for start, seconds, outcome in paths:
+        steps = round(seconds * 10)
+        rows += [(start + k / 10, "path", outcome if k == steps else "") for k in range(steps + 1)]
+    end = rows[-1][0]
+    return rows + [(end + 1.0, "land", ""), (end + 2.0, "land", "succeeded")]
+
+
+def add_simulation(dataset: Path, m: int, success: bool, collisions: int, uavs: dict[int, list],
+                   termination: str = "ground_station", seed: int | None = None) -> None:
+    sim = dataset / f"simulation_{m}"
+    sim.mkdir(parents=True)
+    outcome = termination if termination != "ground_station" else ("completed" if success else "failed")
+    result = {"id": m, "seed": m if seed is None else seed, "success": success, "outcome": outcome,
+              "termination": termination, "message": "", "sim_duration": 60.0, "wall_time": 9.0,
+              "collisions": collisions}
+    storage.write_result(sim, result)
+    storage.update_summary(dataset, result)
+    for uav_id, paths in uavs.items():
+        write_uav_csv(sim / f"uav_{uav_id}.csv", uav_id, 3 - uav_id, flight(paths))
+
+
+def orca_dataset(root: Path) -> Path:
+    dataset = root / "orca" / "dataset_1"
+    add_simulation(dataset, 1, True, 0, {1: [(1.0, 10.0, "succeeded")], 2: [(1.0, 12.0, "succeeded")]})
+    add_simulation(dataset, 2, False, 2, {1: [(1.0, 4.0, "collision")], 2: [(1.0, 4.0, "preempted")]})
+    # UAV 1 flies two paths (from the start of the first to the end of the second: 9 s); UAV 2 flies none
+    add_simulation(dataset, 3, True, 0, {1: [(5.0, 3.0, "succeeded"), (9.0, 5.0, "succeeded")], 2: []})
+    # stopped by Ctrl-C: says nothing about the algorithm, whatever its files hold
+    add_simulation(dataset, 4, False, 0, {1: [(1.0, 1.0, "succeeded")]}, termination="interrupted")
+    return dataset
+
+
+def test_the_synthetic_csvs_are_recorder_csvs(tmp_path):
+    dataset = orca_dataset(tmp_path)
+    header, rows = read_csv(dataset / "simulation_3" / "uav_1.csv")
+    assert header == columns([2], 0)
+    assert [r["outcome"] for r in rows if r["outcome"]] == ["succeeded"] * 4
+
+
+def test_batch_metrics_from_a_dataset(tmp_path):
+    metrics = fly.read_batch(orca_dataset(tmp_path), "ORCA-3D")
+    assert (metrics.simulations, metrics.left_out, metrics.successes, metrics.collision_free) == (3, 1, 2, 2)
+    assert metrics.collision_free_rate == pytest.approx(2 / 3)
+    assert metrics.uav_paths == 5  # simulation 1: 2, simulation 2: 2, simulation 3: 1
+    assert metrics.times_to_goal == pytest.approx([10.0, 12.0, 9.0])
+    assert metrics.mean_time_to_goal == pytest.approx(31 / 3)
+    assert metrics.std_time_to_goal == pytest.approx(statistics.stdev([10.0, 12.0, 9.0]))
+    assert metrics.seeds == [1, 2, 3]
+
+
+def test_path_time_to_goal_needs_every_path_role_to_succeed():
+    rows = [{"time": t, "role": role, "outcome": outcome} for t, role, outcome in flight(
+        [(1.0, 2.0, "succeeded"), (4.0, 2.0, "aborted")])]
+    assert fly.path_time_to_goal(rows) == (True, None)
+    unfinished = [dict(r, outcome="") for r in rows if r["role"] == "path"]
+    assert fly.path_time_to_goal(unfinished) == (True, None)
+    assert fly.path_time_to_goal([r for r in rows if r["role"] != "path"]) == (False, None)
+
+
+def test_a_dataset_without_simulations_is_refused(tmp_path):
+    with pytest.raises(fly.FlyError, match="no summary.csv"):
+        fly.read_batch(tmp_path / "nothing", "network")
+
+
+def test_comparison_table_numbers_and_figure(tmp_path):
+    orca = fly.read_batch(orca_dataset(tmp_path), "ORCA-3D")
+    nn_dir = tmp_path / "nn" / "dataset_1"
+    add_simulation(nn_dir, 1, True, 0, {1: [(1.0, 11.0, "succeeded")], 2: [(1.0, 13.0, "succeeded")]})
+    add_simulation(nn_dir, 2, False, 1, {1: [(1.0, 4.0, "collision")], 2: [(1.0, 4.0, "collision")]})
+    add_simulation(nn_dir, 3, False, 3, {1: [(1.0, 4.0, "collision")], 2: []})
+    comparison = fly.Comparison(orca, fly.read_batch(nn_dir, "network"), WORLD, MISSION, MODEL)
+    assert comparison.ratio == pytest.approx(0.5) and comparison.meets_target is False and comparison.same_seeds
+
+    files = fly.write_comparison(comparison, tmp_path / "out")
+    assert [f.name for f in files] == ["comparison.md", "comparison.json", "comparison.png"]
+    table = files[0].read_text()
+    assert "| collision-free | 2/3 (66.7%) | 1/3 (33.3%) |" in table
+    assert "| UAV paths to the goal | 3/5 (60.0%) | 2/5 (40.0%) |" in table
+    assert f"| time to goal (s, mean ± std) | 10.3 ± {statistics.stdev([10.0, 12.0, 9.0]):.1f} | 12.0 ± 1.4 |" \
+        in table
+    assert "**0.500** (target >= 0.95: NOT met)" in table
+    assert "1 simulation(s) left out" in table and "same seeds" not in table
+    numbers = read(files[1])
+    assert numbers["collision_free_ratio"] == pytest.approx(0.5) and numbers["meets_target"] is False
+    assert numbers["orca"]["simulations"] == 3 and numbers["network"]["collision_free"] == 1
+    assert numbers["network"]["mean_time_to_goal"] == pytest.approx(12.0)
+    assert files[2].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == [f.name for f in sorted(files)]
+
+
+def test_comparison_without_a_collision_free_orca_run_or_with_other_seeds(tmp_path):
+    orca_dir, nn_dir = tmp_path / "o", tmp_path / "n"
+    add_simulation(orca_dir, 1, False, 1, {1: [(1.0, 2.0, "collision")]})
+    add_simulation(nn_dir, 1, True, 0, {1: [(1.0, 2.0, "succeeded")]}, seed=8)
+    comparison = fly.Comparison(fly.read_batch(orca_dir, "ORCA-3D"), fly.read_batch(nn_dir, "network"), WORLD,
+                                MISSION, MODEL)
+    assert comparison.ratio is None and comparison.meets_target is None and not comparison.same_seeds
+    table = comparison.markdown()
+    assert "undefined" in table and "not flown with the same seeds" in table
+    fly.draw_comparison(comparison, tmp_path / "c.png")  # no time to goal for ORCA-3D: drawn as n/a
+
+
+# --- the command, with a stand-in for magna run -------------------------------------------------------------
+
+STUB = """#!/usr/bin/env python3
+# Stands in for the magna command: logs each call; with FLY_STUB_HANG waits for SIGINT, then exits 130.
+import json, os, signal, sys, time
+log = os.environ["FLY_STUB_LOG"]
+def write(entry):
+    with open(log, "a") as out:
+        out.write(json.dumps(entry) + "\\n")
+def interrupted(signum, frame):
+    write({"signal": signum})
+    sys.exit(130)
+signal.signal(signal.SIGINT, interrupted)
+write({"argv": sys.argv[1:], "pid": os.getpid()})
+if os.environ.get("FLY_STUB_HANG"):
+    time.sleep(120)
+"""
+
+
+def stub_root(tmp_path: Path) -> Path:
+    root = tmp_path / "stub"
+    root.mkdir()
+    (root / "magna").write_text(STUB)
+    (root / "magna").chmod(0o755)
+    return root
+
+
+def start_fly(tmp_path: Path, model: Path, *extra: str, hang: bool = False) -> subprocess.Popen:
+    env = dict(os.environ, MAGNA_ROOT=str(stub_root(tmp_path)), FLY_STUB_LOG=str(tmp_path / "calls.jsonl"))
+    if hang:
+        env["FLY_STUB_HANG"] = "1"
+    command = [sys.executable, "-m", "mlr.fly", "--world", WORLD, "--mission", MISSION, "--model", str(model),
+               "--data-root", str(tmp_path / "data"), "--out", str(tmp_path / "out"), "--name", "t", *extra]
+    return subprocess.Popen(command, cwd=ROOT, env=env, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+
+
+def calls(tmp_path: Path) -> list[dict]:
+    path = tmp_path / "calls.jsonl"
+    return [json.loads(line) for line in path.read_text().splitlines()] if path.exists() else []
+
+
+def option(argv: list[str], name: str) -> list[str]:
+    return [argv[i + 1] for i, arg in enumerate(argv) if arg == name]
+
+
+@pytest.fixture(scope="module")
+def model(tmp_path_factory) -> Path:
+    return make_model(tmp_path_factory.mktemp("model"))
+
+
+def test_both_batches_get_the_same_seeds_and_the_network_mission(tmp_path):
+    model = make_model(tmp_path / "model", neighbor_dist=5.0)  # its spec's distance wins over the mission's 8 m
+    done = start_fly(tmp_path, model, "--seed", "7", "--n-iter", "3", "--search-path", str(CORPUS))
+    _, stderr = done.communicate(timeout=120)
+    # the stand-in wrote no data: the batches ran, then the comparison finds no dataset
+    assert done.returncode == 2 and "no summary.csv" in stderr, stderr
+    orca, nn = (c["argv"] for c in calls(tmp_path))
+    out = str((tmp_path / "out").resolve())
+    for argv in (orca, nn):
+        assert argv[0] == "run"
+        assert option(argv, "--seed") == ["7"] and option(argv, "--n-iter") == ["3"]
+        assert option(argv, "--world") == [WORLD] and option(argv, "--rtf") == ["max"]
+        assert option(argv, "--data-root") == [str((tmp_path / "data").resolve())]
+    assert option(orca, "--mission") == [MISSION] and option(orca, "--name") == ["t_orca"]
+    assert option(orca, "--search-path") == [str(CORPUS.resolve())]
+    assert option(nn, "--mission") == [MISSION + "_nn"] and option(nn, "--name") == ["t_nn"]
+    assert option(nn, "--search-path") == [out, str(CORPUS.resolve())]
+    variant = read(tmp_path / "out" / "missions" / "Gym" / "2UAVs_Crossing_ORCA_nn.json")
+    assert variant["State_Machine"][4]["parameters"] == nn_parameters(str(model), 5.0)
+
+
+def test_ctrl_c_stops_the_running_batch_and_starts_no_other(tmp_path, model):
+    process = start_fly(tmp_path, model, hang=True)
+    wait_until(lambda: calls(tmp_path), "the ORCA-3D batch to start", timeout=60)
+    process.send_signal(signal.SIGINT)
+    _, stderr = process.communicate(timeout=60)
+    assert process.returncode == 130, stderr
+    log = calls(tmp_path)
+    assert len([c for c in log if "argv" in c]) == 1, "the network batch never starts"
+    assert {"signal": int(signal.SIGINT)} in log, "the batch got the Ctrl-C"
+    assert not Path(f"/proc/{log[0]['pid']}").exists(), "the batch is not left running"
+    assert not (tmp_path / "out" / "comparison.md").exists()
+
+
+def test_bad_input_starts_nothing(tmp_path, model):
+    refused = start_fly(tmp_path, model, "--mission", str(SIMPLE_MISSION))
+    _, stderr = refused.communicate(timeout=120)
+    assert refused.returncode == 2 and str(SIMPLE_MISSION) in stderr
+    assert calls(tmp_path) == [] and not (tmp_path / "out").exists() and not (tmp_path / "data").exists()
+
+    # an ORCA-3D dataset that is there already, without --append/--overwrite/--skip-orca
+    existing = tmp_path / "again"
+    (existing / "data" / "Simulations" / "Gym" / "Central_Obstacle_Torus" / "Gym" / "2UAVs_Crossing_ORCA" / "t_orca"
+     / "dataset_1" / "simulation_1").mkdir(parents=True)
+    refused = start_fly(existing, model)
+    _, stderr = refused.communicate(timeout=120)
+    assert refused.returncode == 2 and "t_orca" in stderr and "--skip-orca" in stderr
+    assert calls(existing) == []
+
+    skip = tmp_path / "skip"
+    skip.mkdir()
+    refused = start_fly(skip, model, "--skip-orca")
+    _, stderr = refused.communicate(timeout=120)
+    assert refused.returncode == 2 and "--skip-orca" in stderr and "holds no simulations" in stderr
+    assert calls(skip) == []
+
+
+# --- both batches for real ----------------------------------------------------------------------------------
+
+@pytest.mark.timeout(900)
+def test_fly_one_simulation_each_through_magna_run(tmp_path, model):
+    data, out = tmp_path / "data", tmp_path / "out"
+    command = [sys.executable, "-m", "mlr.fly", "--world", WORLD, "--mission", MISSION, "--model", str(model),
+               "--n-iter", "1", "--rtf", "5", "--no-bag", "--data-root", str(data), "--out", str(out)]
+    done = subprocess.run(command, cwd=ROOT, capture_output=True, text=True, stdin=subprocess.DEVNULL,
+                          env=dict(os.environ, MAGNA_ROOT=str(ROOT)))
+    assert done.returncode == 0, f"{done.stdout}\n{done.stderr}"
+
+    base = data / "Simulations" / "Gym" / "Central_Obstacle_Torus" / "Gym"
+    orca_sim = base / "2UAVs_Crossing_ORCA" / "fly_orca" / "dataset_1" / "simulation_1"
+    nn_sim = base / "2UAVs_Crossing_ORCA_nn" / "fly_nn" / "dataset_1" / "simulation_1"
+    results = [read(sim / "result.json") for sim in (orca_sim, nn_sim)]
+    for result in results:
+        assert result["termination"] == "ground_station", result["message"]
+        assert result["leftover_processes_killed"] == []
+    assert results[0]["seed"] == results[1]["seed"], "the same random waypoints"
+    assert (nn_sim / "mission.json").read_text() == (out / "missions" / "Gym" / "2UAVs_Crossing_ORCA_nn.json") \
+        .read_text()
+
+    for sim, algorithm in ((orca_sim, "orca3d"), (nn_sim, "neural_network")):
+        for uav in (1, 2):
+            _, rows = read_csv(sim / f"uav_{uav}.csv")
+            # the last step of a path hands over to the autopilot ("ual"); every other one is the algorithm's
+            flown = {r["algorithm"] for r in rows if r["role"] == "path"} - {"ual"}
+            assert flown == {algorithm}, (sim, uav, flown)
+
+    numbers = read(out / "comparison.json")
+    assert numbers["orca"]["simulations"] == numbers["network"]["simulations"] == 1
+    assert numbers["orca"]["collision_free"] == 1 and numbers["orca"]["goals_reached"] == 2
+    assert math.isfinite(numbers["orca"]["mean_time_to_goal"])
+    assert numbers["same_seeds"] is True
+    table = (out / "comparison.md").read_text()
+    assert "| simulations | 1 | 1 |" in table and table in done.stdout
+    assert (out / "comparison.png").stat().st_size > 0
+
+
+if __name__ == "__main__":
+    sys.exit(pytest.main([__file__, "-v"]))

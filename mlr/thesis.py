@@ -1,0 +1,224 @@
+"""`mlr thesis`: reproduce the thesis experiment, end to end.
+
+For each of its two scenarios (four cylinders; central obstacle):
+1. datasets: make sure `--simulations` simulations (80) of the scenario's ROS-MAGNA mission
+   are recorded under the series name `thesis` (only the missing ones are flown, with
+   `magna run --append`);
+2. train: the thesis architectures (10-10, 30-30, 10-20-10, 20-30-20) from
+   mlr/configs/thesis_<scenario>.yaml, cached and reused like `mlr train`;
+3. fly: the mission flown `--flights` times (20) with the best network and with ORCA-3D, on
+   the same seeds (mlr.fly);
+then a report (Markdown and a figure) beside the thesis's figures.
+
+Every stage skips the work already done, so an interrupted experiment goes on where it stopped.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+HELP = "reproduce the thesis experiment: two datasets of 80 simulations, four architectures, flights vs ORCA-3D"
+DESCRIPTION = __doc__
+CONFIGS = Path(__file__).resolve().parent / "configs"
+STAGES = ("datasets", "train", "fly")
+SERIES = "thesis"
+FLIGHT_SEED = 1000  # the flights' waypoints are not those of the training simulations (seeds 1..80)
+
+
+@dataclass(frozen=True)
+class Scenario:
+    key: str
+    title: str
+    world: str  # WORLD/SUBWORLD
+    mission: str  # MISSION/SUBMISSION
+    config: Path
+    thesis_accuracy: tuple[float, float]  # the range of test accuracies the thesis reports
+
+
+SCENARIOS = (
+    Scenario("four_cylinders", "four cylinders", "Gym/Empty_4_Cylinders", "Gym/2UAVs_2paths_4_Cylinders",
+             CONFIGS / "thesis_four_cylinders.yaml", (0.913, 0.922)),
+    Scenario("central_obstacle", "central obstacle", "Gym/1Obs_Central_Cylinder", "Gym/2UAVs_2paths_Central_Cylinder",
+             CONFIGS / "thesis_central_obstacle.yaml", (0.852, 0.901)),
+)
+
+
+def _repo() -> Path:
+    return Path(os.environ.get("MAGNA_ROOT") or Path(__file__).resolve().parents[1])
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--search-path", action="append", default=[], metavar="DIR",
+                        help="where the ROS-MAGNA Worlds/ and Missions/ are (passed to magna run; repeatable)")
+    parser.add_argument("--data-root", default="~/magna_data", help="where Simulations/ goes (default ~/magna_data)")
+    parser.add_argument("--out", type=Path, help="where the experiment's runs and report go "
+                                                 "(default DATA_ROOT/mlr/thesis)")
+    parser.add_argument("--only", choices=[s.key for s in SCENARIOS], action="append",
+                        help="run only this scenario (repeatable; default both)")
+    parser.add_argument("--stages", default=",".join(STAGES),
+                        help=f"comma-separated stages to run, of {', '.join(STAGES)} (default all); the report is "
+                             "always written from what exists")
+    parser.add_argument("--simulations", type=int, default=80, help="simulations per dataset (default 80)")
+    parser.add_argument("--flights", type=int, default=20, help="simulations per algorithm when flying (default 20)")
+    parser.add_argument("--steps", type=int, help="training steps per architecture (default: the config's)")
+    parser.add_argument("--rtf", default="max", help="simulator real-time factor for datasets and flights")
+    parser.add_argument("--overwrite", action="store_true", help="train and fly again what exists with another "
+                                                                 "config")
+    parser.add_argument("--quiet", action="store_true", help="no progress bars")
+
+
+def _stages(text: str) -> list[str]:
+    stages = [s.strip() for s in text.split(",") if s.strip()]
+    unknown = [s for s in stages if s not in STAGES]
+    if unknown:
+        raise ValueError(f"--stages {unknown[0]!r} is not a stage: give some of {', '.join(STAGES)}")
+    return stages
+
+
+def ensure_dataset(scenario: Scenario, args) -> None:
+    """Fly what is missing for `--simulations` successful simulations (one batch; failures are kept, not redone)."""
+    from mlr.pickler import Selection, find_simulations
+
+    world, subworld = scenario.world.split("/")
+    mission, submission = scenario.mission.split("/")
+    selection = Selection(Path(args.data_root).expanduser(), world, subworld, mission, submission, SERIES)
+    dataset = selection.dataset_dirs()[0]
+    usable = len(find_simulations(selection)[0]) if dataset.is_dir() else 0
+    missing = args.simulations - usable
+    if missing <= 0:
+        print(f"{scenario.title}: {usable} successful simulations recorded in {dataset}", file=sys.stderr)
+        return
+    command = [str(_repo() / "magna"), "run", "--world", scenario.world, "--mission", scenario.mission,
+               "--n-iter", str(missing), "--name", SERIES, "--dataset", "1", "--append", "--rtf", str(args.rtf),
+               "--data-root", str(args.data_root)]
+    for path in args.search_path:
+        command += ["--search-path", str(path)]
+    print(f"{scenario.title}: {usable} successful simulations; flying {missing} more: {' '.join(command)}",
+          file=sys.stderr)
+    status = subprocess.call(command)
+    if status not in (0, 1):  # 1: some simulation failed, which a dataset of real missions may hold
+        raise RuntimeError(f"{scenario.title}: magna run ended with status {status}; see its messages above "
+                           "(a mission that is not found needs --search-path DIR with the ROS-MAGNA files)")
+
+
+def train(scenario: Scenario, args, out: Path):
+    from mlr.config import load_sweep
+    from mlr.manager import run_sweep
+
+    overrides = {"data_root": args.data_root}
+    if args.steps:
+        overrides["steps"] = args.steps
+    sweep = load_sweep(scenario.config, overrides)
+    return run_sweep(sweep, out / scenario.key / "train", overwrite=args.overwrite, progress=not args.quiet)
+
+
+def fly(scenario: Scenario, args, out: Path, model: Path) -> None:
+    from mlr import fly as fly_module
+
+    if (out / scenario.key / "fly" / "comparison.json").is_file() and not args.overwrite:
+        print(f"{scenario.title}: flown before ({out / scenario.key / 'fly'}); --overwrite flies again",
+              file=sys.stderr)
+        return
+    parser = argparse.ArgumentParser()
+    fly_module.add_arguments(parser)
+    argv = ["--world", scenario.world, "--mission", scenario.mission, "--model", str(model), "--n-iter",
+            str(args.flights), "--name", f"{SERIES}_fly", "--data-root", str(args.data_root), "--out",
+            str(out / scenario.key / "fly"), "--rtf", str(args.rtf),
+            "--seed", str(FLIGHT_SEED)]
+    for path in args.search_path:
+        argv += ["--search-path", str(path)]
+    if args.overwrite:
+        argv.append("--overwrite")
+    fly_args = parser.parse_args(argv)
+    status = fly_module.run(fly_args)
+    if status:
+        raise RuntimeError(f"{scenario.title}: flying the comparison ended with status {status}")
+
+
+def _read_json(path: Path) -> dict | None:
+    return json.loads(path.read_text()) if path.is_file() else None
+
+
+def report(scenarios: list[Scenario], out: Path) -> Path:
+    """report.md and report.png from what the stages left in `out`."""
+    lines = ["# The thesis experiment, reproduced", ""]
+    lines += ["Accuracy: share of test samples whose predicted velocity is within 0.1 x max speed of ORCA-3D's "
+              "(mlr/README.md).", ""]
+    lines += ["## Training", "", "| scenario | network | samples (train/val/test) | best step | test loss (normalised) "
+              "| val accuracy | **test accuracy** | thesis test accuracy |", "|---|---|---|---|---|---|---|---|"]
+    bars = []
+    for scenario in scenarios:
+        train_dir = out / scenario.key / "train"
+        for result_file in sorted(train_dir.glob("r*/result.json")):
+            saved = json.loads(result_file.read_text())
+            result, config = saved["result"], saved["config"]
+            hidden = "-".join(map(str, config["hidden_layers"]))
+            sizes = saved.get("samples", {})
+            split = "/".join(str(sizes.get(k, "?")) for k in ("train", "val", "test"))
+            lines.append(f"| {scenario.title} | {hidden} | {split} | {result['best_step']} | "
+                         f"{result['test_loss']:.5f} | {result['val_accuracy'] * 100:.1f}% | "
+                         f"**{result['test_accuracy'] * 100:.1f}%** | {scenario.thesis_accuracy[0] * 100:.1f}-"
+                         f"{scenario.thesis_accuracy[1] * 100:.1f}% |")
+            bars.append((scenario, hidden, result["test_accuracy"]))
+    lines += ["", "## Flights: the best network against ORCA-3D, same seeds", ""]
+    for scenario in scenarios:
+        comparison = out / scenario.key / "fly" / "comparison.md"
+        lines += [f"### {scenario.title}", "", comparison.read_text().strip() if comparison.is_file()
+                  else "(not flown yet: run the fly stage)", ""]
+    path = out / "report.md"
+    out.mkdir(parents=True, exist_ok=True)
+    path.write_text("\n".join(lines) + "\n")
+    if bars:
+        _figure(bars, out / "report.png")
+    return path
+
+
+def _figure(bars: list, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(8, 4))
+    xs = range(len(bars))
+    colors = ["tab:blue" if s.key == SCENARIOS[0].key else "tab:orange" for s, _, _ in bars]
+    ax.bar(xs, [acc * 100 for _, _, acc in bars], color=colors)
+    for i, (scenario, _, _) in enumerate(bars):
+        low, high = scenario.thesis_accuracy
+        ax.plot([i - 0.4, i + 0.4], [low * 100] * 2, "k--", lw=1)
+        ax.plot([i - 0.4, i + 0.4], [high * 100] * 2, "k-", lw=1)
+    ax.set_xticks(list(xs), [f"{s.title}\n{h}" for s, h, _ in bars], fontsize=7)
+    ax.set_ylabel("test accuracy (%)")
+    ax.set_ylim(min(70, min(acc * 100 for _, _, acc in bars) - 5), 100)
+    ax.axhline(93, color="tab:green", lw=1, ls=":", label="target 93%")
+    ax.set_title("Networks learning ORCA-3D (black lines: the thesis's range)")
+    ax.legend(loc="lower right")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def run(args) -> int:
+    stages = _stages(args.stages)
+    out = Path(args.out) if args.out else Path(args.data_root).expanduser() / "mlr" / "thesis"
+    scenarios = [s for s in SCENARIOS if not args.only or s.key in args.only]
+    for scenario in scenarios:
+        if "datasets" in stages:
+            ensure_dataset(scenario, args)
+        model = out / scenario.key / "train" / f"{scenario.config.stem}.pt"
+        if "train" in stages:
+            outcome = train(scenario, args, out)
+            model = outcome.exported or model
+        if "fly" in stages:
+            if not model.is_file():
+                raise FileNotFoundError(f"{model}: no trained network to fly: run the train stage first")
+            fly(scenario, args, out, model)
+    path = report(scenarios, out)
+    print(path.read_text())
+    print(f"report: {path}", file=sys.stderr)
+    return 0
