@@ -17,6 +17,7 @@ COMMANDS: list[tuple[str, str]] = [
     ("world", "magna_worlds.cli"),
     ("mission", "magna_gs.mission.cli"),
     ("run", "magna_master.run_cli"),
+    ("learn", "mlr.cli"),
 ]
 
 
