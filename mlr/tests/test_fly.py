@@ -18,7 +18,7 @@ import pytest
 from magna_master import storage
 from magna_uav.nai.inputs import DEFAULT_NEIGHBOR_DIST, input_names, output_names
 from magna_uav.recorder import columns, read_csv
-from mlr import fly
+from mlr import flight_metrics, nn_mission
 from tests.support import CORPUS, ROOT, wait_until
 
 FOUR_CYLINDERS = CORPUS / "Missions" / "Gym" / "2UAVs_2paths_4_Cylinders.json"
@@ -71,12 +71,12 @@ def make_model(folder: Path, max_speed: float = 2.0, neighbor_dist: float | None
 # --- the network's mission ------------------------------------------------------------------------------------
 
 def test_the_default_neighbor_distance_is_the_nais():
-    assert fly.DEFAULT_NEIGHBOR_DIST == DEFAULT_NEIGHBOR_DIST
+    assert nn_mission.DEFAULT_NEIGHBOR_DIST == DEFAULT_NEIGHBOR_DIST
 
 
 def test_4_cylinders_corpus_mission_flies_the_network_where_it_set_orca(tmp_path):
     original = read(FOUR_CYLINDERS)
-    variant, changes = fly.nn_variant(original, MODEL, source=FOUR_CYLINDERS)
+    variant, changes = nn_mission.nn_variant(original, MODEL, source=FOUR_CYLINDERS)
 
     assert original == read(FOUR_CYLINDERS), "the mission given is not modified"
     assert [(c.where, c.state, c.was) for c in changes] == [("State_Machine[3]", "algorithm_control", "orca3 set")]
@@ -92,12 +92,12 @@ def test_4_cylinders_corpus_mission_flies_the_network_where_it_set_orca(tmp_path
 
 def test_central_cylinder_corpus_mission_keeps_its_distance_unless_the_spec_gives_one(tmp_path):
     original = read(CENTRAL_CYLINDER)
-    variant, changes = fly.nn_variant(original, MODEL, source=CENTRAL_CYLINDER)
+    variant, changes = nn_mission.nn_variant(original, MODEL, source=CENTRAL_CYLINDER)
     assert [c.where for c in changes] == ["State_Machine[5]"]
     assert (changes[0].neighbor_dist, changes[0].neighbor_dist_from) == (6.0, "the mission's ORCA neighborDist")
     assert variant["State_Machine"][5]["parameters"] == nn_parameters(MODEL, 6.0)
 
-    from_spec, changes = fly.nn_variant(original, MODEL, neighbor_dist=4.5, source=CENTRAL_CYLINDER)
+    from_spec, changes = nn_mission.nn_variant(original, MODEL, neighbor_dist=4.5, source=CENTRAL_CYLINDER)
     assert (changes[0].neighbor_dist, changes[0].neighbor_dist_from) == (4.5, "the model's spec")
     assert from_spec["State_Machine"][5]["parameters"] == nn_parameters(MODEL, 4.5)
     assert "State_Machine[5] 'algorithm_control': orca3 set -> neural_network set, neighborDist 4.5" in str(changes[0])
@@ -106,9 +106,9 @@ def test_central_cylinder_corpus_mission_keeps_its_distance_unless_the_spec_give
 def test_the_variant_is_a_mission_the_ground_station_accepts(tmp_path):
     from magna_gs.mission.loader import load_mission
 
-    variant, changes = fly.nn_variant(read(CROSSING), MODEL, source=CROSSING)
+    variant, changes = nn_mission.nn_variant(read(CROSSING), MODEL, source=CROSSING)
     assert (changes[0].where, changes[0].neighbor_dist) == ("State_Machine[4]", 8.0)  # the mission's own 8 m
-    path = fly.write_variant(tmp_path, "Gym", "2UAVs_Crossing_ORCA", variant)
+    path = nn_mission.write_variant(tmp_path, "Gym", "2UAVs_Crossing_ORCA", variant)
     assert path == tmp_path / "missions" / "Gym" / "2UAVs_Crossing_ORCA_nn.json"
     loaded = load_mission(path)  # MissionError on anything the ground station would refuse
     controls = [n.parameters for n in loaded.mission.nodes() if getattr(n.parameters, "name", "") == "neural_network"]
@@ -131,7 +131,7 @@ def test_states_at_any_depth_are_replaced_and_orca_configure_stays():
         {"type": "CBState", "state_type": "algorithm_control", "name": "plain",
          "parameters": {"name": "simple", "action": "set"}},
     ]}
-    variant, changes = fly.nn_variant(mission, MODEL)
+    variant, changes = nn_mission.nn_variant(mission, MODEL)
     assert [(c.where, c.state) for c in changes] == [("State_Machine[1].occurrencies[0]", "inner"),
                                                       ("State_Machine[1].occurrencies[1].occurrencies[0]", "deep")]
     # neither gives a distance: the one the mission's ORCA configure state gives
@@ -146,30 +146,30 @@ def test_states_at_any_depth_are_replaced_and_orca_configure_stays():
 @pytest.mark.parametrize("mission", [SIMPLE_MISSION, CORPUS / "Missions" / "Gym" / "only_world.json"],
                          ids=["simple", "only_world"])
 def test_a_mission_without_orca_is_refused_naming_the_file(mission):
-    with pytest.raises(fly.FlyError) as error:
-        fly.nn_variant(read(mission), MODEL, source=mission)
+    with pytest.raises(nn_mission.FlyError) as error:
+        nn_mission.nn_variant(read(mission), MODEL, source=mission)
     assert str(mission) in str(error.value) and "orca3" in str(error.value)
     if mission == SIMPLE_MISSION:
         assert "simple set at State_Machine[" in str(error.value)
 
 
 def test_a_relative_model_path_or_a_non_mission_is_refused():
-    with pytest.raises(fly.FlyError, match="relative"):
-        fly.nn_variant(read(CROSSING), "model.pt")
-    with pytest.raises(fly.FlyError, match="x.json: not a mission"):
-        fly.nn_variant({"Agents_Config": []}, MODEL, source="x.json")
+    with pytest.raises(nn_mission.FlyError, match="relative"):
+        nn_mission.nn_variant(read(CROSSING), "model.pt")
+    with pytest.raises(nn_mission.FlyError, match="x.json: not a mission"):
+        nn_mission.nn_variant({"Agents_Config": []}, MODEL, source="x.json")
 
 
 def test_the_variant_file_is_never_replaced_by_a_different_one_without_overwrite(tmp_path):
-    first, _ = fly.nn_variant(read(CROSSING), MODEL)
-    second, _ = fly.nn_variant(read(CROSSING), "/other/model.pt")
-    path = fly.write_variant(tmp_path, "Gym", "X", first)
+    first, _ = nn_mission.nn_variant(read(CROSSING), MODEL)
+    second, _ = nn_mission.nn_variant(read(CROSSING), "/other/model.pt")
+    path = nn_mission.write_variant(tmp_path, "Gym", "X", first)
     assert read(path) == first
-    assert fly.write_variant(tmp_path, "Gym", "X", first) == path  # the same content: kept as it is
-    with pytest.raises(fly.FlyError, match="--overwrite"):
-        fly.write_variant(tmp_path, "Gym", "X", second)
+    assert nn_mission.write_variant(tmp_path, "Gym", "X", first) == path  # the same content: kept as it is
+    with pytest.raises(nn_mission.FlyError, match="--overwrite"):
+        nn_mission.write_variant(tmp_path, "Gym", "X", second)
     assert read(path) == first
-    fly.write_variant(tmp_path, "Gym", "X", second, overwrite=True)
+    nn_mission.write_variant(tmp_path, "Gym", "X", second, overwrite=True)
     assert read(path) == second
     assert sorted(p.name for p in path.parent.iterdir()) == ["X_nn.json"], "no temporary file left"
 
@@ -232,7 +232,7 @@ def test_the_synthetic_csvs_are_recorder_csvs(tmp_path):
 
 
 def test_batch_metrics_from_a_dataset(tmp_path):
-    metrics = fly.read_batch(orca_dataset(tmp_path), "ORCA-3D")
+    metrics = flight_metrics.read_batch(orca_dataset(tmp_path), "ORCA-3D")
     assert (metrics.simulations, metrics.left_out, metrics.successes, metrics.collision_free) == (3, 1, 2, 2)
     assert metrics.collision_free_rate == pytest.approx(2 / 3)
     assert metrics.uav_paths == 5  # simulation 1: 2, simulation 2: 2, simulation 3: 1
@@ -245,27 +245,27 @@ def test_batch_metrics_from_a_dataset(tmp_path):
 def test_path_time_to_goal_needs_every_path_role_to_succeed():
     rows = [{"time": t, "role": role, "outcome": outcome} for t, role, outcome in flight(
         [(1.0, 2.0, "succeeded"), (4.0, 2.0, "aborted")])]
-    assert fly.path_time_to_goal(rows) == (True, None)
+    assert flight_metrics.path_time_to_goal(rows) == (True, None)
     unfinished = [dict(r, outcome="") for r in rows if r["role"] == "path"]
-    assert fly.path_time_to_goal(unfinished) == (True, None)
-    assert fly.path_time_to_goal([r for r in rows if r["role"] != "path"]) == (False, None)
+    assert flight_metrics.path_time_to_goal(unfinished) == (True, None)
+    assert flight_metrics.path_time_to_goal([r for r in rows if r["role"] != "path"]) == (False, None)
 
 
 def test_a_dataset_without_simulations_is_refused(tmp_path):
-    with pytest.raises(fly.FlyError, match="no summary.csv"):
-        fly.read_batch(tmp_path / "nothing", "network")
+    with pytest.raises(nn_mission.FlyError, match="no summary.csv"):
+        flight_metrics.read_batch(tmp_path / "nothing", "network")
 
 
 def test_comparison_table_numbers_and_figure(tmp_path):
-    orca = fly.read_batch(orca_dataset(tmp_path), "ORCA-3D")
+    orca = flight_metrics.read_batch(orca_dataset(tmp_path), "ORCA-3D")
     nn_dir = tmp_path / "nn" / "dataset_1"
     add_simulation(nn_dir, 1, True, 0, {1: [(1.0, 11.0, "succeeded")], 2: [(1.0, 13.0, "succeeded")]})
     add_simulation(nn_dir, 2, False, 1, {1: [(1.0, 4.0, "collision")], 2: [(1.0, 4.0, "collision")]})
     add_simulation(nn_dir, 3, False, 3, {1: [(1.0, 4.0, "collision")], 2: []})
-    comparison = fly.Comparison(orca, fly.read_batch(nn_dir, "network"), WORLD, MISSION, MODEL)
+    comparison = flight_metrics.Comparison(orca, flight_metrics.read_batch(nn_dir, "network"), WORLD, MISSION, MODEL)
     assert comparison.ratio == pytest.approx(0.5) and comparison.meets_target is False and comparison.same_seeds
 
-    files = fly.write_comparison(comparison, tmp_path / "out")
+    files = flight_metrics.write_comparison(comparison, tmp_path / "out")
     assert [f.name for f in files] == ["comparison.md", "comparison.json", "comparison.png"]
     table = files[0].read_text()
     assert "| collision-free | 2/3 (66.7%) | 1/3 (33.3%) |" in table
@@ -286,12 +286,12 @@ def test_comparison_without_a_collision_free_orca_run_or_with_other_seeds(tmp_pa
     orca_dir, nn_dir = tmp_path / "o", tmp_path / "n"
     add_simulation(orca_dir, 1, False, 1, {1: [(1.0, 2.0, "collision")]})
     add_simulation(nn_dir, 1, True, 0, {1: [(1.0, 2.0, "succeeded")]}, seed=8)
-    comparison = fly.Comparison(fly.read_batch(orca_dir, "ORCA-3D"), fly.read_batch(nn_dir, "network"), WORLD,
-                                MISSION, MODEL)
+    orca, network = flight_metrics.read_batch(orca_dir, "ORCA-3D"), flight_metrics.read_batch(nn_dir, "network")
+    comparison = flight_metrics.Comparison(orca, network, WORLD, MISSION, MODEL)
     assert comparison.ratio is None and comparison.meets_target is None and not comparison.same_seeds
     table = comparison.markdown()
     assert "undefined" in table and "not flown with the same seeds" in table
-    fly.draw_comparison(comparison, tmp_path / "c.png")  # no time to goal for ORCA-3D: drawn as n/a
+    flight_metrics.draw_comparison(comparison, tmp_path / "c.png")  # no time to goal for ORCA-3D: drawn as n/a
 
 
 # --- the command, with a stand-in for magna run -------------------------------------------------------------
