@@ -8,7 +8,8 @@ Output, under `OUT` (default `<data_root>/mlr/runs/<config stem>`):
     <config stem>.pt/.json  the best network, exported (mlr.export)
 
 A finished run whose config is unchanged is reused, not trained again; a finished run with a
-different config, or an existing export, is kept unless `overwrite` is given.
+different config, or an existing export, is kept unless `overwrite` is given. An export of the
+best of unchanged finished runs is current: it is kept and the sweep goes on.
 """
 from __future__ import annotations
 
@@ -58,6 +59,23 @@ def _finished(run_dir: Path, run: RunConfig) -> RunResult | None:
     return RunResult(**saved["result"])
 
 
+def _export_is_current(out: Path, sweep: Sweep, names: list[str]) -> Path | None:
+    """The existing export, when every run is finished with its config and the export is of the best of them."""
+    path = out / f"{sweep.name}.pt"
+    spec = path.with_suffix(".json")
+    if not path.is_file() or not spec.is_file():
+        return None
+    finished = [_finished(out / name, run) for name, run in zip(names, sweep.runs, strict=True)]
+    if any(result is None for result in finished):
+        return None
+    best = max(finished, key=lambda r: (r.val_accuracy, -r.val_loss))
+    try:
+        about = json.loads(spec.read_text()).get("about", {})
+    except (OSError, json.JSONDecodeError):
+        return None
+    return path if about.get("run") == best.name and about.get("sweep") == str(sweep.source) else None
+
+
 def _table(results: list[RunResult], runs: list[RunConfig], swept: tuple[str, ...]) -> tuple[str, str]:
     header = ["run", *swept, "best step", "val loss", "val acc", "test loss", "test acc", "params", "steps/s", "min"]
     rows = []
@@ -96,7 +114,7 @@ def run_sweep(sweep: Sweep, out: Path | None = None, overwrite: bool = False, fo
             if result_file.is_file() and _finished(out / name, run) is None:
                 raise FileExistsError(f"{result_file}: a finished run with another config is there; pass "
                                       "--overwrite to train it again, or give another --out")
-        if export_best and (out / f"{sweep.name}.pt").exists():
+        if export_best and (out / f"{sweep.name}.pt").exists() and _export_is_current(out, sweep, names) is None:
             raise FileExistsError(f"{out / (sweep.name + '.pt')}: an exported network is there; pass --overwrite "
                                   "to replace it, or give another --out")
     out.mkdir(parents=True, exist_ok=True)
@@ -145,8 +163,10 @@ def run_sweep(sweep: Sweep, out: Path | None = None, overwrite: bool = False, fo
     best = results[best_index]
     _write(out / "best.json", json.dumps({"run": best.name, "result": asdict(best),
                                           "config": sweep.runs[best_index].as_dict()}, indent=2) + "\n")
-    exported = None
-    if export_best:
+    exported = None if overwrite else _export_is_current(out, sweep, names)
+    if exported is not None:
+        log(f"best: {best.name}, exported before to {exported}")
+    elif export_best:
         run = sweep.runs[best_index]
         prepared = data[_data_key(run)][0]
         net, _ = load_trained(Path(best.directory), prepared.train.x.shape[1])
