@@ -34,7 +34,8 @@ def record_one(rec, view, **kwargs):
 
 def test_column_set_and_order_for_two_other_uavs_and_two_obstacles():
     assert columns([3, 2], n_obstacles=2) == [
-        "time", "uav_id", "role", "algorithm", "goal.x", "goal.y", "goal.z", "sel_vel.x", "sel_vel.y", "sel_vel.z",
+        "time", "uav_id", "role", "algorithm", "goal.x", "goal.y", "goal.z",
+        "goal_vel.x", "goal_vel.y", "goal_vel.z", "goal_dist", "sel_vel.x", "sel_vel.y", "sel_vel.z",
         "pos.x", "pos.y", "pos.z", "ori.x", "ori.y", "ori.z", "ori.w", "vel.x", "vel.y", "vel.z", "yaw_rate",
         "uav2.pos.x", "uav2.pos.y", "uav2.pos.z", "uav2.vel.x", "uav2.vel.y", "uav2.vel.z",
         "uav3.pos.x", "uav3.pos.y", "uav3.pos.z", "uav3.vel.x", "uav3.vel.y", "uav3.vel.z",
@@ -42,8 +43,8 @@ def test_column_set_and_order_for_two_other_uavs_and_two_obstacles():
         "obs0.name", "obs0.pos.x", "obs0.pos.y", "obs0.pos.z", "obs0.gap",
         "obs1.name", "obs1.pos.x", "obs1.pos.y", "obs1.pos.z", "obs1.gap",
         "collision", "collided_with", "out_of_bounds", "low_battery", "battery", "ual_state", "feasible", "outcome"]
-    assert len(columns([], 0)) == 21 + 2 + 8
-    assert len(columns([2], 5)) == 21 + 6 + 2 + 1 + 5 * 5 + 8
+    assert len(columns([], 0)) == 25 + 2 + 8
+    assert len(columns([2], 5)) == 25 + 6 + 2 + 1 + 5 * 5 + 8
     assert Recorder(1, [3, 2], n_obstacles=2).columns == columns([2, 3], 2)
 
 
@@ -127,11 +128,36 @@ def test_unknown_goal_and_own_pose_give_nan_and_out_of_bounds_comes_from_the_vie
     view = WorldView(1, boundaries=[[-1, 1], [-1, 1], [0, 2]])
     record_one(rec, view, goal_position=None, chosen_velocity=None)  # no own pose heard yet
     row = rec.row(0)
-    assert all(math.isnan(row[c]) for c in ("goal.x", "sel_vel.z", "pos.x", "ori.w", "battery", "nearest_uav_gap"))
+    assert all(math.isnan(row[c]) for c in ("goal.x", "goal_vel.y", "goal_dist", "sel_vel.z", "pos.x", "ori.w",
+                                            "battery", "nearest_uav_gap"))
     assert (row["ual_state"], row["out_of_bounds"]) == (0, 0)
     view.update_agent(AgentState(1, [5, 0, 1]))
     record_one(rec, view)
     assert rec.row(1)["out_of_bounds"] == 1
+
+
+def test_the_goal_target_velocity_and_distance_follow_the_goal_and_are_nan_without_one():
+    rec = Recorder(1, [2])
+    record_one(rec, make_view(), role="agent_ad", goal_velocity=[1.0, -0.5, 0.25], goal_distance=2.0)
+    record_one(rec, make_view(), role="agent_ap", goal_velocity=np.array([0.0, 1.0, 0.0]))
+    record_one(rec, make_view())  # a path step: no target
+    target = [[rec.row(i)[c] for c in ("goal_vel.x", "goal_vel.y", "goal_vel.z", "goal_dist")] for i in range(3)]
+    assert target[0] == [1.0, -0.5, 0.25, 2.0]
+    assert target[1][:3] == [0.0, 1.0, 0.0] and math.isnan(target[1][3])
+    assert all(math.isnan(v) for v in target[2])
+    assert list(rec.row(0))[4:11] == ["goal.x", "goal.y", "goal.z", "goal_vel.x", "goal_vel.y", "goal_vel.z",
+                                      "goal_dist"]
+    with pytest.raises(ValueError, match="expected 3 values"):
+        record_one(rec, make_view(), goal_velocity=[1.0, 2.0])
+
+
+def test_each_new_row_goes_to_on_row_as_recorded():
+    seen = []
+    rec = Recorder(1, [2], on_row=lambda index, row: seen.append((index, row)))
+    record_one(rec, make_view(), feasible=True)
+    record_one(rec, make_view(), time=1.6, algorithm="ual", chosen_velocity=[0, 0, 0])
+    assert seen == [(0, rec.row(0)), (1, rec.row(1))]
+    assert (seen[1][1]["time"], seen[1][1]["algorithm"]) == (1.6, "ual")
 
 
 def test_set_outcome_marks_the_last_row():
@@ -178,6 +204,29 @@ def test_read_csv_refuses_a_file_that_is_not_a_recorder_csv(tmp_path):
     (tmp_path / "short.csv").write_text(lines[0] + "\n" + lines[1].rsplit(",", 1)[0] + "\n")
     with pytest.raises(ValueError, match=r"short.csv:2: \d+ cells for \d+ columns"):
         read_csv(tmp_path / "short.csv")
+
+
+def test_read_csv_reads_a_file_of_an_older_recorder_with_nan_goal_targets(tmp_path):
+    rec = Recorder(1, [2], n_obstacles=1)
+    record_one(rec, make_view(), goal_velocity=[1, 2, 3], goal_distance=4.0)
+    record_one(rec, make_view(), time=1.6, outcome="succeeded")
+    new = rec.save_csv(tmp_path / "new.csv")
+    # the same file as a recorder before goal_vel/goal_dist wrote it: those four columns cut out
+    lines = [line.split(",") for line in new.read_text().splitlines()]
+    keep = [i for i, name in enumerate(lines[0]) if name not in recorder.LEGACY_MISSING]
+    assert len(keep) == len(lines[0]) - 4
+    old = tmp_path / "old.csv"
+    old.write_text("".join(",".join(cells[i] for i in keep) + "\n" for cells in lines))
+    header, rows = read_csv(old)
+    assert header == rec.columns  # one layout for callers, whatever the file's age
+    assert [list(row) for row in rows] == [rec.columns] * 2
+    for index, row in enumerate(rows):
+        assert all(math.isnan(row[c]) for c in recorder.LEGACY_MISSING)
+        assert row["outcome"] == rec.row(index)["outcome"] and row["goal.x"] == 5 and row["uav2.pos.x"] == 3
+    # a header missing other columns as well is still refused
+    (tmp_path / "older.csv").write_text(",".join(lines[0][i] for i in keep if lines[0][i] != "yaw_rate") + "\n")
+    with pytest.raises(ValueError, match=r"older.csv: not a recorder CSV header \(missing \['goal_vel.x'"):
+        read_csv(tmp_path / "older.csv")
 
 
 def test_an_existing_file_is_refused_unless_overwrite(tmp_path):
@@ -308,3 +357,52 @@ def test_the_recorder_module_imports_without_ros():
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=False)
     assert done.returncode == 0, done.stderr
     assert int(done.stdout) == len(recorder.columns([2], 1))
+
+
+# --- the node's NavigationStep: the same numbers as the row -----------------------------------------------------
+
+def test_a_row_becomes_the_navigation_step_with_its_values():
+    from magna_msgs.msg import NavigationStep
+
+    from magna_uav.ros_node import navigation_msg
+
+    rec = Recorder(1, [2])
+    record_one(rec, make_view(), time=12.3, role="agent_ad", goal_velocity=[1.0, -0.5, 0.25], goal_distance=2.0,
+               feasible=False)
+    record_one(rec, make_view(), time=0.1 + 0.2, algorithm="ual", goal_position=None, chosen_velocity=[0, 0, 0])
+    first, second = navigation_msg(0, rec.row(0), 3), navigation_msg(1, rec.row(1), 4)
+    assert (first.row, first.role_number, first.role, first.algorithm) == (0, 3, "agent_ad", "orca3")
+    assert (first.header.stamp.secs, first.header.stamp.nsecs, first.header.frame_id) == (12, 300000000, "map")
+    assert [first.goal.x, first.goal.y, first.goal.z] == [5, 0, 1]
+    assert [first.goal_velocity.x, first.goal_velocity.y, first.goal_velocity.z, first.goal_distance] == \
+        [1.0, -0.5, 0.25, 2.0]
+    assert [first.selected_velocity.x, first.selected_velocity.y, first.selected_velocity.z] == [0.5, 0, 0]
+    assert first.feasible == NavigationStep.INFEASIBLE == 0
+    # rounded to the ns (0.30000000000000004 s), NaN where the row has NaN, unknown feasibility -1
+    assert (second.header.stamp.secs, second.header.stamp.nsecs) == (0, 300000000)
+    assert math.isnan(second.goal.x) and math.isnan(second.goal_velocity.y) and math.isnan(second.goal_distance)
+    assert second.feasible == NavigationStep.FEASIBILITY_UNKNOWN == -1
+
+
+@pytest.mark.ros
+def test_a_late_subscriber_first_gets_every_step_sent_so_far(rospy_node):
+    from magna_msgs.msg import NavigationStep
+
+    from magna_uav.ros_node import NavigationPublisher
+    from tests.support import wait_until
+
+    rospy = rospy_node
+    topic = "/magna/test_recorder/navigation"
+    publisher = NavigationPublisher(topic)
+    for row in range(3):  # nobody listens yet: a simulation's first steps before rosbag subscribes
+        publisher.publish(NavigationStep(row=row, role_number=1, role="take_off", algorithm="ual"))
+    heard = []
+    subscriber = rospy.Subscriber(topic, NavigationStep, lambda msg: heard.append(msg.row), queue_size=100)
+    try:
+        wait_until(lambda: len(heard) >= 3, "the replayed steps")
+        publisher.publish(NavigationStep(row=3, role_number=2, role="path", algorithm="orca3d"))
+        wait_until(lambda: 3 in heard, "the next step")
+        assert sorted(set(heard)) == [0, 1, 2, 3] and heard[:3] == [0, 1, 2]
+    finally:
+        subscriber.unregister()
+        publisher.publisher.unregister()

@@ -162,4 +162,6 @@ class UavManager:
             return
         goal_position = goal.position if goal is not None else np.full(3, np.nan)
         self.recorder.record(now, self.role_name, algorithm, goal_position, chosen, self.view,
-                             evaluation=evaluation, feasible=feasible, outcome=outcome)
+                             evaluation=evaluation, feasible=feasible, outcome=outcome,
+                             goal_velocity=None if goal is None else goal.velocity,
+                             goal_distance=None if goal is None else goal.distance)

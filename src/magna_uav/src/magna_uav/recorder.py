@@ -5,6 +5,9 @@ The column set is defined once, by `columns(other_ids, n_obstacles)`, and docume
 package README ("Recorder CSV columns"); mlr trains from these files, so change both together.
 Values: floats in shortest round-trip form ("nan" when unknown), flags 0/1, ids and UAL states
 as integers, text as is; `feasible` is empty when the algorithm did not say.
+
+`read_csv` also reads files written before the goal's target velocity and distance were
+recorded (`LEGACY_MISSING`): those columns come back NaN.
 """
 from __future__ import annotations
 
@@ -13,7 +16,7 @@ import math
 import os
 import re
 from collections import Counter
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -25,8 +28,13 @@ DEFAULT_OBSTACLES = 5
 NAN = math.nan
 
 XYZ = ("x", "y", "z")
-_HEAD = (["time", "uav_id", "role", "algorithm"] + [f"goal.{a}" for a in XYZ] + [f"sel_vel.{a}" for a in XYZ]
-         + [f"pos.{a}" for a in XYZ] + [f"ori.{a}" for a in (*XYZ, "w")] + [f"vel.{a}" for a in XYZ] + ["yaw_rate"])
+# goal_vel / goal_dist: what a follower role knows of its target (Goal.velocity, Goal.distance); the
+# network inputs of agent_ad / agent_ap need them, so mlr must find them in the rows.
+GOAL_TARGET = (*(f"goal_vel.{a}" for a in XYZ), "goal_dist")
+_HEAD = (["time", "uav_id", "role", "algorithm"] + [f"goal.{a}" for a in XYZ] + list(GOAL_TARGET)
+         + [f"sel_vel.{a}" for a in XYZ] + [f"pos.{a}" for a in XYZ] + [f"ori.{a}" for a in (*XYZ, "w")]
+         + [f"vel.{a}" for a in XYZ] + ["yaw_rate"])
+LEGACY_MISSING = GOAL_TARGET  # columns that files of older recorders lack; read_csv gives them NaN
 _TAIL = ["collision", "collided_with", "out_of_bounds", "low_battery", "battery", "ual_state", "feasible", "outcome"]
 
 TEXT_COLUMNS = frozenset({"role", "algorithm", "collided_with", "outcome"})  # and every obs{k}.name
@@ -69,7 +77,7 @@ class Recorder:
     """Rows of one UAV's control steps; see `columns` for what a row holds."""
 
     def __init__(self, uav_id: int, other_ids: Iterable[int], n_obstacles: int = DEFAULT_OBSTACLES,
-                 depth: bool = False):
+                 depth: bool = False, on_row: Callable[[int, dict], None] | None = None):
         self.uav_id = int(uav_id)
         self.other_ids = _other_ids(other_ids)
         if self.uav_id in self.other_ids:
@@ -81,6 +89,9 @@ class Recorder:
         self._frames: list[np.ndarray] = []
         self._frame_rows: list[int] = []
         self._last_depth = None  # the view's depth array last stored: a frame is kept once, on the row it arrived
+        # Called with each new row's index and {column: value} (the node publishes it as a
+        # NavigationStep, so a bag carries the same numbers as the CSV).
+        self.on_row = on_row
 
     @property
     def rows(self) -> int:
@@ -96,8 +107,12 @@ class Recorder:
 
     def record(self, time: float, role: str, algorithm: str, goal_position: Sequence[float] | None,
                chosen_velocity: Sequence[float] | None, view: WorldView, evaluation=None,
-               feasible: bool | None = None, outcome: str = "") -> int:
+               feasible: bool | None = None, outcome: str = "", goal_velocity: Sequence[float] | None = None,
+               goal_distance: float | None = None) -> int:
         """Append the row of this control step; returns its index.
+
+        goal_velocity / goal_distance: the goal's target velocity and kept distance (follower
+        roles); None gives NaN.
 
         Positions, velocities and which obstacles are nearest come from `view`; gaps, collisions,
         out_of_bounds and low_battery come from `evaluation` (duck-typed: nearest_agent_gap,
@@ -112,7 +127,9 @@ class Recorder:
         obstacles = _ranked_obstacles(view, _mapping(getattr(evaluation, "obstacle_gaps", None)), own is not None)
 
         row: list = [float(time), self.uav_id, str(role), str(algorithm)]
-        row += _vector(goal_position, 3) + _vector(chosen_velocity, 3)
+        row += _vector(goal_position, 3) + _vector(goal_velocity, 3)
+        row.append(NAN if goal_distance is None else float(goal_distance))
+        row += _vector(chosen_velocity, 3)
         if own is not None:
             row += _vector(own.position, 3) + _vector(own.orientation, 4) + _vector(own.velocity, 3)
             row.append(float(own.yaw_rate))
@@ -159,6 +176,8 @@ class Recorder:
             self._last_depth = own.depth
             self._frames.append(frame)
             self._frame_rows.append(index)
+        if self.on_row is not None:
+            self.on_row(index, self.row(index))
         return index
 
     def set_outcome(self, outcome: str) -> None:
@@ -214,7 +233,10 @@ class Recorder:
 def read_csv(path: str | os.PathLike) -> tuple[list[str], list[dict]]:
     """(columns, rows) of a recorder CSV, each row {column: value} with the types of `column_kind`.
 
-    ValueError naming the file when the header is not a recorder column set.
+    A file of an older recorder, whose header lacks only the `LEGACY_MISSING` columns (goal_vel.*,
+    goal_dist), is read too: the returned columns are the current set and those cells are NaN in
+    every row, so callers see one layout. ValueError naming the file when the header is not a
+    recorder column set.
     """
     path = Path(path)
     with open(path, newline="", encoding="utf-8") as source:
@@ -226,7 +248,8 @@ def read_csv(path: str | os.PathLike) -> tuple[list[str], list[dict]]:
         others = [int(m.group(1)) for name in header if (m := re.fullmatch(r"uav(\d+)\.pos\.x", name))]
         n_obstacles = sum(1 for name in header if re.fullmatch(r"obs\d+\.name", name))
         expected = columns(others, n_obstacles)
-        if header != expected:
+        legacy = [name for name in expected if name not in LEGACY_MISSING]
+        if header != expected and header != legacy:
             missing = [c for c in expected if c not in header]
             extra = [c for c in header if c not in expected]
             raise ValueError(f"{path}: not a recorder CSV header (missing {missing}, unexpected {extra}"
@@ -240,7 +263,9 @@ def read_csv(path: str | os.PathLike) -> tuple[list[str], list[dict]]:
                 rows.append({name: _parse(cell, kind) for name, cell, kind in zip(header, cells, kinds, strict=True)})
             except ValueError as error:
                 raise ValueError(f"{path}:{line}: {error}") from None
-    return header, rows
+    if header != expected:  # a legacy file: the missing columns are unknown, in their place
+        rows = [{name: row.get(name, NAN) for name in expected} for row in rows]
+    return expected, rows
 
 
 def read_depth(csv_path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
@@ -324,4 +349,5 @@ def _parse(cell: str, kind: str):
     return float(cell)
 
 
-__all__ = ["DEFAULT_OBSTACLES", "Recorder", "column_kind", "columns", "depth_path", "read_csv", "read_depth"]
+__all__ = ["DEFAULT_OBSTACLES", "GOAL_TARGET", "LEGACY_MISSING", "Recorder", "column_kind", "columns", "depth_path",
+           "read_csv", "read_depth"]
