@@ -78,7 +78,10 @@ Private parameters (defaults):
 """
 
 SUCCESS_OUTCOMES = ("completed", "succeeded", "success", "mission_completed", "finished")
-BAG_TOPICS = (r"/tf|/tf_static|/magna/world/markers|/uav_[0-9]+/ual/pose|/magna/sm/mission/.*"
+# The UAL pose and velocity and the managers' navigation steps let mlr rebuild every recorded
+# control step from the bag (mlr.bags), e.g. for flights whose CSVs are lost or never written.
+BAG_TOPICS = (r"/tf|/tf_static|/magna/world/markers|/uav_[0-9]+/ual/pose|/uav_[0-9]+/ual/velocity"
+              r"|/magna/uav_[0-9]+/navigation|/magna/sm/mission/.*"
               r"|/magna/uav_[0-9]+/path/.*|/magna/uav_[0-9]+/goal|/magna/gs/critical_event")
 
 

@@ -18,8 +18,9 @@ from pathlib import Path
 
 import numpy as np
 import rospy
-from geometry_msgs.msg import Point, PoseStamped
+from geometry_msgs.msg import Point, PoseStamped, Vector3
 from magna_msgs import msg as magna_actions
+from magna_msgs.msg import NavigationStep
 from magna_msgs.srv import AlgorithmControl, AlgorithmControlResponse, Die, DieResponse, StateActualization
 from nav_msgs.msg import Path as PathMsg
 from std_msgs.msg import Float64, String
@@ -48,6 +49,8 @@ Action servers (magna_msgs), under /magna/uav_{id}/:
   set_mission   an on-board mission: optional take-off, a path, optional landing (goal.mission_json)
 Services: /magna/uav_{id}/algorithm_control (AlgorithmControl), /magna/uav_{id}/die (Die)
 Topics:   /magna/uav_{id}/path/raw, /path/smoothed (nav_msgs/Path), /goal (PoseStamped);
+          /magna/uav_{id}/navigation (NavigationStep): every recorded control step, as its CSV row
+          (a new subscriber first gets the steps sent so far);
           listens to /magna/gs/critical_event (std_msgs/String; empty clears it)
 Reports:  /magna/gs/state_actualization (StateActualization) when the ground station serves it
 Machine:  /magna/sm/uav_{id}/structure|status (magna_sm introspection)
@@ -73,6 +76,48 @@ ACTION_TYPES = {
 }
 STATE_SERVICE = "/magna/gs/state_actualization"
 CRITICAL_TOPIC = "/magna/gs/critical_event"
+
+
+def navigation_msg(index: int, row: dict, role_number: int) -> NavigationStep:
+    """The NavigationStep of the recorder's row `index` (`Recorder.row`): the very numbers its CSV row gets."""
+    msg = NavigationStep(row=index, role_number=role_number, role=row["role"], algorithm=row["algorithm"],
+                         goal=Point(*(row[f"goal.{a}"] for a in "xyz")),
+                         goal_velocity=Vector3(*(row[f"goal_vel.{a}"] for a in "xyz")),
+                         goal_distance=row["goal_dist"],
+                         selected_velocity=Vector3(*(row[f"sel_vel.{a}"] for a in "xyz")),
+                         feasible=NavigationStep.FEASIBILITY_UNKNOWN if row["feasible"] is None else row["feasible"])
+    # rounded to the nanosecond, not truncated as Time.from_sec does: a bag reader compares it
+    # with the UAL stamps of the same simulated instant
+    nanoseconds = round(row["time"] * 1e9)
+    msg.header.stamp = rospy.Time(nanoseconds // 10**9, nanoseconds % 10**9)
+    msg.header.frame_id = "map"
+    return msg
+
+
+class NavigationPublisher(rospy.SubscribeListener):
+    """Publishes the NavigationSteps, and replays those sent so far to every new subscriber.
+
+    rosbag record finds a topic by polling the master about once a wall second, so at a high
+    real-time factor the first steps would be flown before the bag listens. A new subscriber
+    first gets the last `backlog` steps, oldest first; a step published while it was joining
+    may reach it twice, so readers drop repeats (same `row`: mlr.bags does).
+    """
+
+    def __init__(self, topic: str, backlog: int = 10000):
+        self._sent: collections.deque[NavigationStep] = collections.deque(maxlen=backlog)
+        self._lock = threading.Lock()  # a replay and a new step never interleave on one connection
+        # The queue holds a whole replay: a shorter one would drop its oldest steps.
+        self.publisher = rospy.Publisher(topic, NavigationStep, queue_size=backlog, subscriber_listener=self)
+
+    def publish(self, msg: NavigationStep) -> None:
+        with self._lock:
+            self._sent.append(msg)
+            self.publisher.publish(msg)
+
+    def peer_subscribe(self, topic_name, topic_publish, peer_publish) -> None:
+        with self._lock:
+            for msg in self._sent:
+                peer_publish(msg)
 
 
 class SettingsError(ValueError):
@@ -263,8 +308,11 @@ class UavManagerNode:
         if settings.algorithm != "simple":
             self.nai.control(settings.algorithm, "set")
         self.evaluator = Evaluator(own, settings.low_battery)
+        # Every recorded step also goes out as a NavigationStep, so the bag can stand in for the CSV.
+        self.navigation = NavigationPublisher(ns + "navigation")
+        self.role_number = 0  # roles flown so far; their steps carry it
         self.recorder = Recorder(self.uav_id, [c.id for c in settings.configs if c.id != self.uav_id],
-                                 depth=settings.depth)
+                                 depth=settings.depth, on_row=self._publish_navigation)
         self.stepping = SteppingClock(rospy.Rate(settings.control_rate), ns + "control_step")
         self.manager = UavManager(self.view, self.commander, self.nai, self.evaluator, self.recorder,
                                   Clock(self.stepping.now, self.stepping.sleep), lock=self.data.lock)
@@ -333,6 +381,7 @@ class UavManagerNode:
             self.desk.release(order)
             return "done"
         self.reporter.report(action)
+        self.role_number += 1
         if isinstance(role, FollowPathRole):
             now = rospy.Time.now()
             self.raw_path.publish(path_msg(role.waypoints, stamp=now))
@@ -405,6 +454,12 @@ class UavManagerNode:
             return ABORTED, f"save_csv: {error}"
         self.written.add(written.resolve())
         return "succeeded", f"{rows} rows written to {written}"
+
+    def _publish_navigation(self, index: int, row: dict) -> None:
+        try:
+            self.navigation.publish(navigation_msg(index, row, self.role_number))
+        except rospy.ROSException:  # shutting down: the row is recorded all the same
+            pass
 
     def _on_algorithm_control(self, req) -> AlgorithmControlResponse:
         try:
