@@ -1,0 +1,233 @@
+"""Simulation bag -> the steps of every UAV (`mlr.steps.UavSteps`), as the recorder CSVs hold them.
+
+The ground station bags (magna_gs `BAG_TOPICS`) what a UAV manager saw and did at each control
+step, so the steps can be rebuilt where no CSV exists (a real flight's bag, a lost file):
+
+- `/magna/uav_{id}/navigation` (magna_msgs/NavigationStep): one message per recorded step, with
+  that CSV row's time (the stamp), role, algorithm, goal, goal_vel, goal_dist and sel_vel, and
+  its row index. One step per row index, in row order: a repeat (the manager replays its steps
+  to a late subscriber, see magna_uav's README) is dropped. So the steps are the CSV's rows,
+  except rows whose message the bag missed (none, normally).
+- own and other UAVs' position and velocity: the newest `/uav_{id}/ual/pose` and
+  `/uav_{id}/ual/velocity` stamped at or before the step (a zero stamp counts as the time the bag
+  got the message), NaN before the bag's first one (rosbag subscribes to a new topic within about
+  a wall second: the first take-off steps may come before). The CSV holds the pose the manager
+  had last heard instead: mostly the same message, else a neighbour in the simulator's 30 Hz
+  stream (one period of flight, < 0.07 m at 2 m/s), and rarely, when the manager's subscriber
+  stalled, one a few tenths of a second old (mlr/tests/test_recording.py measures it). Others'
+  gap = centre distance minus both safety radii (the airframes' `safety_radius`, the models of
+  `mission.json`), as the view computes it.
+- obstacles: the managers learn them only from the world node's `/magna/world/markers`, as the
+  bounding spheres `magna_uav.ros_data.ObstacleMarkers` makes of the "obstacles" markers; the same
+  class replays the bagged marker messages up to each step (by the time the bag got them), so a
+  world part added or deleted mid-mission counts from then on. They are ranked by the gap between
+  own safety sphere and bounding sphere, nearest first, ties in the markers' order, as the
+  recorder ranks them; K = `magna_uav.recorder.DEFAULT_OBSTACLES` slots, NaN where fewer.
+- role_end: the last step of each role, i.e. the last message of each `role_number`; the recorder
+  writes the role's outcome on that same row, so `role_end` equals the CSV's (`outcome != ""`).
+
+Reading needs only rosbags (pure Python: `AnyReader` takes the message definitions from the bag,
+so magna_msgs need not be built) and magna_uav; the markers' geometry comes from magna_uav.ros_data,
+which imports the ROS message packages (geometry_msgs, visualization_msgs: no rospy, no master).
+Depth images are not bagged: `depth_frames` stays None.
+"""
+from __future__ import annotations
+
+import math
+import re
+from collections import defaultdict
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+
+from magna_uav.config import ConfigError, configs_from_mission_file
+from magna_uav.recorder import DEFAULT_OBSTACLES
+from magna_uav.world_view import AgentState, WorldView
+from mlr.pickler import PicklerError
+from mlr.steps import UavSteps
+
+BAG_NAME = "simulation.bag"
+MARKERS_TOPIC = "/magna/world/markers"
+_NAVIGATION = re.compile(r"/magna/uav_(\d+)/navigation")
+_UAL = re.compile(r"/uav_(\d+)/ual/(pose|velocity)")
+_USE_CSV = "use the CSVs (source csv)"
+
+
+class _Series:
+    """Vectors by stamp (integer ns), for 'the newest at or before t'."""
+
+    def __init__(self):
+        self._stamps: list[int] = []
+        self._values: list[tuple[float, float, float]] = []
+        self.stamps = np.zeros(0, dtype=np.int64)
+        self.values = np.zeros((0, 3))
+
+    def add(self, stamp: int, value: tuple[float, float, float]) -> None:
+        self._stamps.append(stamp)
+        self._values.append(value)
+
+    def freeze(self) -> None:
+        # A stable sort: of equal stamps (the simulator re-sends the pose while paused) the last heard wins.
+        order = np.argsort(np.asarray(self._stamps, dtype=np.int64), kind="stable")
+        self.stamps = np.asarray(self._stamps, dtype=np.int64)[order]
+        self.values = np.asarray(self._values, dtype=float).reshape(-1, 3)[order]
+
+    def at(self, stamps: np.ndarray) -> np.ndarray:
+        """(n, 3) the newest value stamped at or before each of `stamps`; NaN before the first."""
+        k = np.searchsorted(self.stamps, stamps, side="right") - 1
+        out = np.full((len(stamps), 3), np.nan)
+        known = k >= 0
+        out[known] = self.values[k[known]]
+        return out
+
+
+def _stamp_ns(header, log_time: int) -> int:
+    ns = int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
+    return ns if ns > 0 else int(log_time)  # an unstamped message: when it was heard, as ros_data does
+
+
+def _xyz(v) -> tuple[float, float, float]:
+    return (float(v.x), float(v.y), float(v.z))
+
+
+def _safety_radii(sim_dir: Path, ids) -> dict[int, float]:
+    mission = sim_dir / "mission.json"
+    try:
+        radii = {c.id: float(c.safety_radius) for c in configs_from_mission_file(mission)}
+    except ConfigError as err:
+        raise PicklerError(f"{err} (the UAVs' safety radii come from their models there)") from None
+    missing = sorted(set(ids) - set(radii))
+    if missing:
+        raise PicklerError(f"{mission}: UAV {missing[0]} is not in Agents_Config: its safety radius is unknown")
+    return radii
+
+
+def steps_from_bag(sim_dir: str | Path, max_speeds: Mapping[int, float],
+                   safety_radii: Mapping[int, float] | None = None) -> list[UavSteps]:
+    """The steps of every UAV of `max_speeds` (sorted by id) from `sim_dir/simulation.bag` (module docstring).
+
+    `safety_radii` (UAV id -> m) defaults to the airframes of `sim_dir/mission.json`'s models.
+    A UAV without navigation messages gets no steps; a bag without any raises PicklerError.
+    """
+    sim_dir = Path(sim_dir)
+    bag = sim_dir / BAG_NAME
+    if not bag.is_file():
+        raise PicklerError(f"{bag}: no such bag (the simulation ran with --no-bag?): {_USE_CSV}")
+    ids = sorted(int(i) for i in max_speeds)
+    radii = dict(safety_radii) if safety_radii is not None else _safety_radii(sim_dir, ids)
+    if missing := [i for i in ids if i not in radii]:
+        raise PicklerError(f"{bag}: no safety radius for UAV {missing[0]}")
+    navigation, poses, velocities, markers = _read(bag)
+    if not navigation:
+        raise PicklerError(f"{bag}: no /magna/uav_<id>/navigation messages: recorded before navigation steps "
+                           f"were bagged: {_USE_CSV}")
+    strangers = sorted(set(navigation) - set(ids))
+    if strangers:
+        raise PicklerError(f"{bag}: UAV {strangers[0]} flew but is not in the simulation's mission.json "
+                           "Agents_Config")
+    return [_uav_steps(bag, uav, float(max_speeds[uav]), navigation.get(uav, []), poses, velocities, markers,
+                       radii, ids) for uav in ids]
+
+
+def _read(bag: Path):
+    from rosbags.highlevel import AnyReader  # the optional dependency, only when bags are read
+
+    navigation: dict[int, dict[int, tuple]] = defaultdict(dict)  # UAV -> row -> (stamp, message)
+    poses: dict[int, _Series] = defaultdict(_Series)
+    velocities: dict[int, _Series] = defaultdict(_Series)
+    markers: list[tuple[int, object]] = []
+    try:
+        with AnyReader([bag]) as reader:
+            wanted = [c for c in reader.connections
+                      if _NAVIGATION.fullmatch(c.topic) or _UAL.fullmatch(c.topic) or c.topic == MARKERS_TOPIC]
+            for connection, log_time, raw in reader.messages(connections=wanted):
+                msg = reader.deserialize(raw, connection.msgtype)
+                if connection.topic == MARKERS_TOPIC:
+                    markers.append((int(log_time), msg))
+                elif match := _NAVIGATION.fullmatch(connection.topic):
+                    # keyed by row: a replayed step is the same row (two steps may share a stamp)
+                    navigation[int(match.group(1))][int(msg.row)] = (_stamp_ns(msg.header, log_time), msg)
+                else:
+                    match = _UAL.fullmatch(connection.topic)
+                    uav, kind = int(match.group(1)), match.group(2)
+                    if kind == "pose":
+                        poses[uav].add(_stamp_ns(msg.header, log_time), _xyz(msg.pose.position))
+                    else:
+                        velocities[uav].add(_stamp_ns(msg.header, log_time), _xyz(msg.twist.linear))
+    except Exception as err:  # rosbags raises its own error types per format; all mean "cannot read it"
+        if isinstance(err, PicklerError):
+            raise
+        raise PicklerError(f"{bag}: cannot read the bag: {err}") from None
+    for series in (*poses.values(), *velocities.values()):
+        series.freeze()
+    markers.sort(key=lambda item: item[0])
+    ordered = {uav: [steps[row] for row in sorted(steps)] for uav, steps in navigation.items()}
+    return ordered, poses, velocities, markers
+
+
+def _uav_steps(bag: Path, uav: int, max_speed: float, messages: list, poses, velocities, markers, radii,
+               ids: list[int]) -> UavSteps:
+    n = len(messages)
+    stamps = np.array([stamp for stamp, _ in messages], dtype=np.int64)
+    msgs = [msg for _, msg in messages]
+    numbers = np.array([m.role_number for m in msgs], dtype=np.int64)
+    empty = _Series()
+    empty.freeze()
+    position = poses.get(uav, empty).at(stamps)
+    others = {}
+    for j in ids:
+        if j == uav:
+            continue
+        other_position = poses.get(j, empty).at(stamps)
+        distance = np.linalg.norm(other_position - position, axis=1)
+        others[j] = (other_position, velocities.get(j, empty).at(stamps), distance - radii[uav] - radii[j])
+    obstacle_pos, obstacle_gap = _ranked_obstacles(stamps, position, radii[uav], markers)
+    return UavSteps(
+        source=bag,
+        uav_id=uav,
+        max_speed=max_speed,
+        time=stamps / 1e9,
+        role=np.array([m.role for m in msgs], dtype=object),
+        algorithm=np.array([m.algorithm for m in msgs], dtype=object),
+        position=position,
+        velocity=velocities.get(uav, empty).at(stamps),
+        goal=np.array([_xyz(m.goal) for m in msgs], dtype=float).reshape(n, 3),
+        goal_vel=np.array([_xyz(m.goal_velocity) for m in msgs], dtype=float).reshape(n, 3),
+        goal_dist=np.array([m.goal_distance for m in msgs], dtype=float),
+        sel_vel=np.array([_xyz(m.selected_velocity) for m in msgs], dtype=float).reshape(n, 3),
+        # the last message of a role: the row where the recorder writes the role's outcome
+        role_end=np.append(numbers[1:] != numbers[:-1], True) if n else np.zeros(0, dtype=bool),
+        others=others,
+        obstacle_pos=obstacle_pos,
+        obstacle_gap=obstacle_gap,
+    )
+
+
+def _ranked_obstacles(stamps: np.ndarray, position: np.ndarray, safety_radius: float, markers: list,
+                      k: int = DEFAULT_OBSTACLES) -> tuple[np.ndarray, np.ndarray]:
+    """(n, k, 3) centres and (n, k) gaps of the k nearest obstacles at each step, as a manager's view ranks them."""
+    out_pos = np.full((len(stamps), k, 3), np.nan)
+    out_gap = np.full((len(stamps), k), np.nan)
+    if not markers:
+        return out_pos, out_gap
+    from magna_uav.ros_data import ObstacleMarkers  # the managers' own reading of the markers
+
+    table = ObstacleMarkers()
+    view = WorldView(0)
+    applied = 0
+    for i, stamp in enumerate(stamps):
+        while applied < len(markers) and markers[applied][0] <= stamp:
+            table.apply(markers[applied][1])  # rosbags' messages have the fields and values of the ROS ones
+            view.set_obstacles(table.obstacles())
+            applied += 1
+        if not np.all(np.isfinite(position[i])) or not view.obstacles:
+            continue
+        view.update_agent(AgentState(0, position[i], safety_radius=safety_radius))
+        for slot, (obstacle, gap) in enumerate(view.nearest_obstacles(k)):
+            out_pos[i, slot] = obstacle.position
+            out_gap[i, slot] = gap if math.isfinite(gap) else np.nan
+    return out_pos, out_gap
+
+
+__all__ = ["BAG_NAME", "steps_from_bag"]
