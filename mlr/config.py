@@ -26,6 +26,7 @@ PADDINGS = ("same", "valid")
 POOLINGS = ("max", "avg", "none")
 SCHEDULES = ("constant", "cosine")
 LOSSES = ("mse", "l1", "norm")
+AUGMENTATIONS = ("none", "yaw")
 LIST_KEYS = frozenset({"datasets", "hidden_layers", "image_size", "split"})
 REQUIRED = ("world", "subworld", "mission", "submission")
 
@@ -72,6 +73,7 @@ class RunConfig:
     learning_rate: float = 1e-3
     lr_schedule: str = "constant"  # cosine: decays to 0 over the steps (finer final fit)
     loss: str = "mse"  # mse; l1; norm: mean Euclidean error of the (normalised) velocity, like accuracy's test
+    augment: str = "none"  # yaw: each batch turned by random yaws about the vertical (mlr.augment)
     batch_size: int = 500
     steps: int = 20000
     eval_every: int = 1000
@@ -196,6 +198,8 @@ def _check(path: Path, key: str, value):
         return word(value, SCHEDULES)
     if key == "loss":
         return word(value, LOSSES)
+    if key == "augment":
+        return word(value, AUGMENTATIONS)
     if key == "datasets":
         if not isinstance(value, list) or not value:
             fail("a list of dataset numbers, e.g. [1, 2]")
@@ -245,6 +249,9 @@ def load_sweep(path: str | Path, overrides: dict | None = None) -> Sweep:
             run.teacher  # noqa: B018 - checks the teacher's counts and role
         except ValueError as err:
             raise ConfigError(f"{path}: {err}") from None
+        if run.model == "cnn" and run.augment != "none":
+            raise ConfigError(f"{path}: augment {run.augment} turns the vectors but not the depth image a cnn also "
+                              "sees: use augment none with model cnn")
         if run.model == "cnn" and run.padding == "valid":
             side = min(run.image_size)
             for _ in range(run.conv_depth):

@@ -134,6 +134,13 @@ def train_run(run: RunConfig, prepared: Prepared, run_dir: Path, name: str, prog
         writer.add_graph(model, example)
     except Exception as err:  # the graph is a nicety; never lose a run over it
         writer.add_text("graph", f"not drawn: {err}")
+    augmenter = None
+    if run.augment == "yaw":
+        from mlr.augment import YawAugmenter
+
+        augmenter = YawAugmenter(run.role, run.n_neighbors, run.n_obstacles, run.neighbor_dist)
+        norms = [torch.as_tensor(np.asarray(v, dtype=np.float32)) for v in
+                 (prepared.x_norm.mean, prepared.x_norm.scale, prepared.y_norm.mean, prepared.y_norm.scale)]
     best = {"val_accuracy": -1.0, "val_loss": math.inf, "step": 0}
     recent: list[float] = []
     generator = torch.Generator().manual_seed(run.seed)
@@ -150,6 +157,9 @@ def train_run(run: RunConfig, prepared: Prepared, run_dir: Path, name: str, prog
         xb, yb = shuffled[0][position:position + batch], shuffled[1][position:position + batch]
         images = shuffled[2][position:position + batch] if len(shuffled) == 3 else None
         position += batch
+        if augmenter is not None:  # turn the raw scene, then normalise again
+            x_raw, y_raw = augmenter(xb * norms[1] + norms[0], yb * norms[3] + norms[2], generator)
+            xb, yb = (x_raw - norms[0]) / norms[1], (y_raw - norms[2]) / norms[3]
         loss = loss_fn(_forward(model, xb, images), yb)
         optimizer.zero_grad(set_to_none=True)
         loss.backward()
