@@ -4,10 +4,11 @@ For each of its two scenarios (four cylinders; central obstacle):
 1. datasets: make sure `--simulations` simulations (80) of the scenario's ROS-MAGNA mission
    are recorded under the series name `thesis` (only the missing ones are flown, with
    `magna run --append`);
-2. train: the thesis architectures (10-10, 30-30, 10-20-10, 20-30-20) from
-   mlr/configs/thesis_<scenario>.yaml, cached and reused like `mlr train`;
+2. train: the thesis architectures (10-10, 30-30, 10-20-10, 20-30-20) and a wider 128-128-128,
+   each without and with yaw augmentation (mlr/configs/thesis_<scenario>.yaml), cached and reused
+   like `mlr train`;
 3. fly: the mission flown `--flights` times (20) with the best network and with ORCA-3D, on
-   the same seeds (mlr.fly);
+   the same seeds (mlr.fly; an ORCA-3D batch flown before is reused);
 then a report (Markdown and a figure) beside the thesis's figures.
 
 Every stage skips the work already done, so an interrupted experiment goes on where it stopped.
@@ -132,6 +133,12 @@ def fly(scenario: Scenario, args, out: Path, model: Path) -> None:
             "--seed", str(FLIGHT_SEED)]
     for path in args.search_path:
         argv += ["--search-path", str(path)]
+    world, subworld = scenario.world.split("/")
+    mission, submission = scenario.mission.split("/")
+    orca = Path(args.data_root).expanduser() / "Simulations" / world / subworld / mission / submission / \
+        f"{SERIES}_fly_orca" / "dataset_1"
+    if len(list(orca.glob("simulation_*"))) >= args.flights:
+        argv.append("--skip-orca")  # ORCA-3D flies the same with any network: its batch is reused
     if args.overwrite:
         argv.append("--overwrite")
     fly_args = parser.parse_args(argv)
@@ -144,6 +151,16 @@ def _read_json(path: Path) -> dict | None:
     return json.loads(path.read_text()) if path.is_file() else None
 
 
+def _sweep_results(scenario: Scenario, out: Path) -> list[Path]:
+    """result.json of each run of the scenario's config that is finished (older sweeps' folders are ignored)."""
+    from mlr.config import load_sweep
+
+    sweep = load_sweep(scenario.config)
+    train_dir = out / scenario.key / "train"
+    return [train_dir / sweep.run_name(i) / "result.json" for i in range(len(sweep.runs))
+            if (train_dir / sweep.run_name(i) / "result.json").is_file()]
+
+
 def report(scenarios: list[Scenario], out: Path) -> Path:
     """report.md and report.png from what the stages left in `out`."""
     lines = ["# The thesis experiment, reproduced", ""]
@@ -153,11 +170,11 @@ def report(scenarios: list[Scenario], out: Path) -> Path:
               "| val accuracy | **test accuracy** | thesis test accuracy |", "|---|---|---|---|---|---|---|---|"]
     bars = []
     for scenario in scenarios:
-        train_dir = out / scenario.key / "train"
-        for result_file in sorted(train_dir.glob("r*/result.json")):
+        for result_file in _sweep_results(scenario, out):
             saved = json.loads(result_file.read_text())
             result, config = saved["result"], saved["config"]
-            hidden = "-".join(map(str, config["hidden_layers"]))
+            hidden = "-".join(map(str, config["hidden_layers"])) + \
+                (f", {config['augment']} augmentation" if config.get("augment", "none") != "none" else "")
             sizes = saved.get("samples", {})
             split = "/".join(str(sizes.get(k, "?")) for k in ("train", "val", "test"))
             lines.append(f"| {scenario.title} | {hidden} | {split} | {result['best_step']} | "

@@ -86,4 +86,6 @@ def test_the_shipped_thesis_configs_load():
         sweep = load_sweep(path)
         assert sweep.runs and all(run.world and run.submission for run in sweep.runs)
     thesis = load_sweep(Path(__file__).resolve().parents[1] / "configs" / "thesis_four_cylinders.yaml")
-    assert [r.hidden_layers for r in thesis.runs] == [(10, 10), (30, 30), (10, 20, 10), (20, 30, 20), (128, 128, 128)]
+    architectures = [(10, 10), (30, 30), (10, 20, 10), (20, 30, 20), (128, 128, 128)]
+    assert [r.hidden_layers for r in thesis.runs][::2] == architectures
+    assert [r.augment for r in thesis.runs][:2] == ["none", "yaw"]
