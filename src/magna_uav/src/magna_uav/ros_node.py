@@ -133,6 +133,7 @@ class Settings:
     depth: bool = False
     low_battery: float = 0.15
     algorithm: str = "simple"
+    flies_networks: bool = False  # the mission names neural_network: torch is imported at start-up
 
     @property
     def own(self) -> UavConfig:
@@ -164,8 +165,9 @@ def read_settings(param=rospy.get_param) -> Settings:
     low = float(param("~low_battery", 0.15))
     if not 0.0 <= low < 1.0:
         raise SettingsError(f"~low_battery is {low}: give a battery fraction in [0, 1)")
+    flies_networks = bool(mission_file) and "neural_network" in Path(mission_file).read_text(errors="replace")
     return Settings(uav_id, configs, rate, Path(param("~data_dir", str(Path.home() / ".ros" / "magna"))).expanduser(),
-                    bool(param("~depth_camera", False)), low, str(param("~algorithm", "simple")))
+                    bool(param("~depth_camera", False)), low, str(param("~algorithm", "simple")), flies_networks)
 
 
 @dataclass
@@ -304,6 +306,11 @@ class UavManagerNode:
         from magna_uav.commanders import UalCommander
 
         self.commander = UalCommander(self.uav_id)
+        if settings.flies_networks:
+            # Importing torch takes seconds. Done here, while the mission's set-up holds the simulator,
+            # instead of inside algorithm_control, during which the simulator runs (at rtf max, tens of
+            # empty simulated seconds before take-off).
+            import torch  # noqa: F401
         self.nai = NavigationInterface(own.max_speed, own.safety_radius)
         if settings.algorithm != "simple":
             self.nai.control(settings.algorithm, "set")
