@@ -200,21 +200,25 @@ def _figure(bars: list, path: Path) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.patches import Patch
 
-    fig, ax = plt.subplots(figsize=(8, 4))
-    xs = range(len(bars))
-    colors = ["tab:blue" if s.key == SCENARIOS[0].key else "tab:orange" for s, _, _ in bars]
-    ax.bar(xs, [acc * 100 for _, _, acc in bars], color=colors)
+    colors = {SCENARIOS[0].key: "tab:blue", SCENARIOS[1].key: "tab:orange"}
+    fig, ax = plt.subplots(figsize=(max(6.0, 0.55 * len(bars) + 2), 4.5))
+    xs = list(range(len(bars)))
+    ax.bar(xs, [acc * 100 for _, _, acc in bars], color=[colors[s.key] for s, _, _ in bars])
     for i, (scenario, _, _) in enumerate(bars):
         low, high = scenario.thesis_accuracy
-        ax.plot([i - 0.4, i + 0.4], [low * 100] * 2, "k--", lw=1)
-        ax.plot([i - 0.4, i + 0.4], [high * 100] * 2, "k-", lw=1)
-    ax.set_xticks(list(xs), [f"{s.title}\n{h}" for s, h, _ in bars], fontsize=7)
+        ax.fill_between([i - 0.45, i + 0.45], low * 100, high * 100, color="black", alpha=0.35, lw=0)
+    labels = [h.replace(", yaw augmentation", " +yaw") for _, h, _ in bars]
+    ax.set_xticks(xs, labels, rotation=60, ha="right", fontsize=8)
     ax.set_ylabel("test accuracy (%)")
     ax.set_ylim(min(70, min(acc * 100 for _, _, acc in bars) - 5), 100)
-    ax.axhline(93, color="tab:green", lw=1, ls=":", label="target 93%")
-    ax.set_title("Networks learning ORCA-3D (black lines: the thesis's range)")
-    ax.legend(loc="lower right")
+    ax.axhline(93, color="tab:green", lw=1, ls=":")
+    handles = [Patch(color=colors[s.key], label=s.title) for s in SCENARIOS if any(b[0] is s for b in bars)]
+    handles += [Patch(color="black", alpha=0.35, label="the thesis's range"),
+                plt.Line2D([], [], color="tab:green", ls=":", label="target 93%")]
+    ax.legend(handles=handles, loc="lower right", fontsize=8)
+    ax.set_title("Networks learning ORCA-3D: test accuracy (+yaw: trained with yaw augmentation)")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
