@@ -25,6 +25,19 @@ class UsageError(Exception):
     """Bad input from the user: printed as `magna: <message>`, exit status 2."""
 
 
+def _project_packages_importable() -> None:
+    """mlr (and later voice) live at the repository root, beside the catkin packages, so a node
+    started by roslaunch does not see them: put the root on sys.path."""
+    from magna_master.workspace import WorkspaceNotFound, find_root
+
+    try:
+        root = str(find_root())
+    except WorkspaceNotFound:
+        return
+    if root not in sys.path:
+        sys.path.append(root)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="magna",
@@ -32,6 +45,7 @@ def build_parser() -> argparse.ArgumentParser:
         epilog="Run 'magna COMMAND --help' for the options of one command.",
     )
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", title="commands")
+    _project_packages_importable()
     for name, module_name in COMMANDS:
         module = importlib.import_module(module_name)
         sub = subparsers.add_parser(name, help=module.HELP, description=module.HELP)
