@@ -31,16 +31,21 @@ def _buffer(values) -> torch.Tensor:
     return torch.as_tensor(np.asarray(values, dtype=np.float32))
 
 
+def _register_norms(module: nn.Module, **norms: Normalizer) -> None:
+    """Buffers `<name>_mean` and `<name>_scale` (float32) for each normaliser, e.g. x_norm -> x_mean, x_scale."""
+    for name, norm in norms.items():
+        prefix = name.removesuffix("_norm")
+        module.register_buffer(f"{prefix}_mean", _buffer(norm.mean))
+        module.register_buffer(f"{prefix}_scale", _buffer(norm.scale))
+
+
 class VectorNetwork(nn.Module):
     """sel_vel = net((x - x_mean) / x_scale) * y_scale + y_mean."""
 
     def __init__(self, net: nn.Module, x_norm: Normalizer, y_norm: Normalizer):
         super().__init__()
         self.net = net
-        self.register_buffer("x_mean", _buffer(x_norm.mean))
-        self.register_buffer("x_scale", _buffer(x_norm.scale))
-        self.register_buffer("y_mean", _buffer(y_norm.mean))
-        self.register_buffer("y_scale", _buffer(y_norm.scale))
+        _register_norms(self, x_norm=x_norm, y_norm=y_norm)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         return self.net((x - self.x_mean) / self.x_scale) * self.y_scale + self.y_mean
@@ -52,12 +57,7 @@ class ImageNetwork(nn.Module):
     def __init__(self, net: nn.Module, x_norm: Normalizer, y_norm: Normalizer, image_norm: Normalizer):
         super().__init__()
         self.net = net
-        self.register_buffer("x_mean", _buffer(x_norm.mean))
-        self.register_buffer("x_scale", _buffer(x_norm.scale))
-        self.register_buffer("y_mean", _buffer(y_norm.mean))
-        self.register_buffer("y_scale", _buffer(y_norm.scale))
-        self.register_buffer("image_mean", _buffer(image_norm.mean))
-        self.register_buffer("image_scale", _buffer(image_norm.scale))
+        _register_norms(self, x_norm=x_norm, y_norm=y_norm, image_norm=image_norm)
 
     def forward(self, image: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
         image = (image - self.image_mean) / self.image_scale
