@@ -97,20 +97,13 @@ def cmd_export(args) -> int:
     from mlr import cache
     from mlr.export import export
     from mlr.pickler import find_simulations
-    from mlr.train import load_trained
+    from mlr.train import load_trained, trained_config
 
     run_dir = Path(args.run_dir)
     if not (run_dir / "checkpoint.pt").is_file():
         raise CliError(f"{run_dir}: no checkpoint.pt: give the folder of a run trained by 'mlr train'")
     saved = json.loads((run_dir / "result.json").read_text()) if (run_dir / "result.json").is_file() else {}
-    from mlr.config import RunConfig
-
-    checkpoint_config = saved.get("config")
-    if checkpoint_config is None:
-        import torch
-
-        checkpoint_config = torch.load(run_dir / "checkpoint.pt", weights_only=True)["config"]
-    run = RunConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in checkpoint_config.items()})
+    run = trained_config(run_dir)
     sims, _ = find_simulations(run.selection)
     samples, key, _ = cache.cached_samples(run.selection, run.teacher, run.source, sims)
     prepared, _ = cache.cached_prepared(samples, key, run.selection.data_root, run.split, run.seed)

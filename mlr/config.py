@@ -92,6 +92,11 @@ class RunConfig:
     def as_dict(self) -> dict:
         return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
 
+    @classmethod
+    def from_dict(cls, values: dict) -> RunConfig:
+        """The inverse of `as_dict` (a config saved in a checkpoint or result.json)."""
+        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in values.items()})
+
 
 @dataclass(frozen=True)
 class Sweep:

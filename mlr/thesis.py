@@ -81,13 +81,20 @@ def _stages(text: str) -> list[str]:
     return stages
 
 
-def ensure_dataset(scenario: Scenario, args) -> None:
-    """Fly what is missing for `--simulations` successful simulations (one batch; failures are kept, not redone)."""
-    from mlr.pickler import Selection, find_simulations
+def _selection(scenario: Scenario, args, name: str):
+    """The scenario's dataset series `name` under --data-root."""
+    from mlr.pickler import Selection
 
     world, subworld = scenario.world.split("/")
     mission, submission = scenario.mission.split("/")
-    selection = Selection(Path(args.data_root).expanduser(), world, subworld, mission, submission, SERIES)
+    return Selection(Path(args.data_root).expanduser(), world, subworld, mission, submission, name)
+
+
+def ensure_dataset(scenario: Scenario, args) -> None:
+    """Fly what is missing for `--simulations` successful simulations (one batch; failures are kept, not redone)."""
+    from mlr.pickler import find_simulations
+
+    selection = _selection(scenario, args, SERIES)
     dataset = selection.dataset_dirs()[0]
     usable = len(find_simulations(selection)[0]) if dataset.is_dir() else 0
     missing = args.simulations - usable
@@ -133,10 +140,7 @@ def fly(scenario: Scenario, args, out: Path, model: Path) -> None:
             "--seed", str(FLIGHT_SEED)]
     for path in args.search_path:
         argv += ["--search-path", str(path)]
-    world, subworld = scenario.world.split("/")
-    mission, submission = scenario.mission.split("/")
-    orca = Path(args.data_root).expanduser() / "Simulations" / world / subworld / mission / submission / \
-        f"{SERIES}_fly_orca" / "dataset_1"
+    orca = _selection(scenario, args, f"{SERIES}_fly_orca").dataset_dirs()[0]
     if len(list(orca.glob("simulation_*"))) >= args.flights:
         argv.append("--skip-orca")  # ORCA-3D flies the same with any network: its batch is reused
     if args.overwrite:

@@ -205,11 +205,15 @@ def train_run(run: RunConfig, prepared: Prepared, run_dir: Path, name: str, prog
     return result
 
 
+def trained_config(run_dir: Path) -> RunConfig:
+    """The config a run was trained with, from its checkpoint."""
+    return RunConfig.from_dict(torch.load(Path(run_dir) / "checkpoint.pt", weights_only=True)["config"])
+
+
 def load_trained(run_dir: Path, size_in: int) -> tuple[nn.Module, RunConfig]:
     """The best weights of a finished run, in its network."""
     checkpoint = torch.load(Path(run_dir) / "checkpoint.pt", weights_only=True)
-    config = checkpoint["config"]
-    run = RunConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in config.items()})
+    run = RunConfig.from_dict(checkpoint["config"])
     model = build_model(run, size_in)
     model.load_state_dict(checkpoint["model"])
     model.eval()
