@@ -1,0 +1,1 @@
+"""Offline voice and keyboard command assistant for running MAGNA missions."""
