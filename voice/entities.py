@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import difflib
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from voice import vocabulary as vocab
 from voice.numbers import NUMBER_WORDS, read_number
@@ -201,9 +201,14 @@ class _Reader:
         if kind == "unit":
             name, unit, factor = value
             self.add("unit", name, i, end, unit=unit, factor=factor)
-        elif kind == "action" and self.out.first("action") and self.words[i] in vocab.DIRECTIONS:
+            if self.words[end:end + 3] == ["and", "a", "half"]:  # "a meter and a half"
+                number = next((e for e in reversed(self.out.entities) if e.kind == "number" and e.end == i), None)
+                if number is not None:
+                    self.out.entities[self.out.entities.index(number)] = replace(number, value=number.value + 0.5)
+                    return end + 3
+        elif kind == "action" and self.out.first("action") and " ".join(self.words[i:end]) in vocab.DIRECTIONS:
             # a second verb that is also a direction ("fly lower") is the direction
-            self.add("direction", vocab.DIRECTIONS[self.words[i]], i, end)
+            self.add("direction", vocab.DIRECTIONS[" ".join(self.words[i:end])], i, end)
         else:
             self.add(kind, value, i, end)
             if kind == "action" and " ".join(self.words[i:end]) in vocab.ACTION_DIRECTIONS:

@@ -126,6 +126,8 @@ def _candidate_actions(u: Understanding) -> list[tuple[str, Entity | None]]:
     if implied is not None and (not out or implied in ("set", "get")):
         out.append((implied, None))
     out += [(e.value, e) for e in weak]
+    if u.tokens and u.tokens[0] in vocab.YES_NO_OPENERS and u.of("identity"):  # "is drone two airborne?"
+        out.insert(0, ("get", None))
     seen, unique = set(), []
     for action, entity in out:
         if action not in seen:

@@ -11,14 +11,17 @@ import math
 # Canonical actions are the ground station's (magna_msgs/GroundStationCommand.action).
 ACTIONS = {
     "take off": "take_off", "takeoff": "take_off", "lift off": "take_off", "liftoff": "take_off",
-    "launch": "take_off", "get airborne": "take_off", "airborne": "take_off",
-    "land": "land", "touch down": "land", "touchdown": "land", "set down": "land",
+    "launch": "take_off", "get airborne": "take_off", "airborne": "take_off", "off the ground": "take_off",
+    "in the air": "take_off", "into the air": "take_off",
+    "land": "land", "landing": "land", "back on the ground": "land", "down on the ground": "land",
+    "touch down": "land", "touchdown": "land", "set down": "land",
     "go": "move", "move": "move", "fly": "move", "head": "move", "travel": "move", "shift": "move",
     "translate": "move", "climb": "move", "rise": "move", "ascend": "move", "raise": "move",
     "descend": "move", "lower": "move", "drop": "move", "sink": "move", "come": "move", "step": "move",
-    "turn": "turn", "rotate": "turn", "yaw": "turn", "spin": "turn",
-    "follow": "follow", "following": "follow", "track": "follow", "chase": "follow", "tail": "follow",
-    "shadow": "follow",
+    "gain": "move", "advance": "move", "retreat": "move", "slide": "move", "drift": "move", "strafe": "move",
+    "turn": "turn", "rotate": "turn", "yaw": "turn", "spin": "turn", "do a": "turn",
+    "follow": "follow", "following": "follow", "trail": "follow", "track": "follow", "chase": "follow",
+    "tail": "follow", "shadow": "follow",
     "escort": "follow", "stay behind": "follow", "keep behind": "follow", "behind": "follow",
     "what": "get", "how": "get", "tell": "get", "report": "get", "give me": "get", "check": "get",
     "show": "get",
@@ -30,10 +33,10 @@ ACTIONS = {
     "unpause": "resume", "keep going": "resume", "restart": "resume",
 }
 # Verbs that carry a direction of their own ("climb five meters").
-ACTION_DIRECTIONS = {"climb": "up", "rise": "up", "ascend": "up", "raise": "up", "descend": "down",
-                     "lower": "down", "drop": "down", "sink": "down"}
+ACTION_DIRECTIONS = {"climb": "up", "rise": "up", "ascend": "up", "raise": "up", "gain": "up", "descend": "down",
+                     "lower": "down", "drop": "down", "sink": "down", "advance": "forward", "retreat": "backward"}
 # After these the next UAV named is the one to follow, not the one commanded.
-FOLLOW_TARGET_MARKERS = {"follow", "following", "track", "chase", "tail", "shadow", "escort", "stay behind",
+FOLLOW_TARGET_MARKERS = {"follow", "following", "trail", "track", "chase", "tail", "shadow", "escort", "stay behind",
                          "keep behind", "behind", "after"}
 
 INTENT_OF_ACTION = {"take_off": "basic_action", "land": "basic_action", "move": "basic_action",
@@ -99,7 +102,10 @@ FILLERS = frozenset(
     "please okay ok uh um er erm hmm hey now then right just so well could can would will you your i i'd want "
     "like to the a an of at by and it its is are be please thanks thank kindly let me us lets let's "
     "quickly slowly immediately straight some more another again also yeah yes alright there that this for "
-    "in on with distance do does me my our we of away time after along stay keep remain start height altitude".split())
+    "in on with distance do does me my our we of away time after along stay keep remain start "
+    "height altitude over initiate still".split())
+# A sentence opening with these asks yes or no about a UAV ("is drone two airborne?"): its state.
+YES_NO_OPENERS = ("is", "are", "has", "have", "did")
 NEGATIVE_WORDS = ("minus", "negative")
 # Numbers after these words belong to the identity ("drone number two"), not to a distance.
 ID_LINKERS = ("number",)
