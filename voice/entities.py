@@ -184,6 +184,11 @@ class _Reader:
                 return k
             if word in vocab.ID_LINKERS:  # "number" alone means nothing
                 return i + 1
+        if word in ("all", "both"):  # "all three drones": the count belongs to the name
+            count, k = read_number(words, i + 1)
+            if count is not None and k < len(words) and words[k] in vocab.UAV_NOUNS:
+                self.add("identity", "all", i, k + 1)
+                return k + 1
         for phrase, kind, value in PHRASES.get(word, ()):
             if words[i:i + len(phrase)] == phrase:
                 return self.phrase(i, i + len(phrase), kind, value)
@@ -225,7 +230,8 @@ class _Reader:
 
 def _assign_roles(result: Understanding) -> None:
     """An identity right after "follow"/"behind" (fillers between allowed) is the one to follow."""
-    markers = [e for e in result.entities if e.kind == "action" and e.body.split()[0] in vocab.FOLLOW_TARGET_MARKERS]
+    markers = [e for e in result.entities if e.kind == "action"
+               and (e.body in vocab.FOLLOW_TARGET_MARKERS or e.body.split()[0] in vocab.FOLLOW_TARGET_MARKERS)]
     behind = [i for i, w in enumerate(result.tokens) if w in ("behind", "after")]
     ends = [m.end for m in markers] + [i + 1 for i in behind]
     for n, e in enumerate(result.entities):

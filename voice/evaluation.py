@@ -14,7 +14,8 @@ from pathlib import Path
 from voice.interpret import Command, Question
 
 TESTSET_DIR = Path(__file__).resolve().parent / "testset"
-TESTSETS = {"commands": TESTSET_DIR / "commands.jsonl", "held_out": TESTSET_DIR / "held_out.jsonl"}
+TESTSETS = {"commands": TESTSET_DIR / "commands.jsonl", "held_out": TESTSET_DIR / "held_out.jsonl",
+            "fresh": TESTSET_DIR / "fresh.jsonl"}
 TEST_UAV_IDS = (1, 2, 3)
 
 

@@ -101,7 +101,7 @@ def _reading(u: Understanding, action: str, action_entity: Entity | None, ids: l
     if action == "get" and not u.of("parameter") and u.not_understood:  # "what's the weather like"
         return Question(f"Sorry, I can tell the battery, state or position of a UAV, not "
                         f"'{' '.join(u.not_understood)}'.", "parameter", {"action": "get"})
-    agent, agent_entities = _agent(u)
+    agent, agent_entities = _agent(u, action)
     if agent is None:
         return Question(f"Which UAV should {_verb(action)}: {_choices(ids)}?", "identity", {"action": action})
     used += agent_entities
@@ -117,16 +117,21 @@ def _reading(u: Understanding, action: str, action_entity: Entity | None, ids: l
 
 # --- what to do --------------------------------------------------------------------------------
 def _candidate_actions(u: Understanding) -> list[tuple[str, Entity | None]]:
-    """Verbs in the order said, then the action implied without a verb, then the asking verbs."""
+    """The readings to try, in order: verbs as said, a move or turn implied by a number without a verb,
+    mission verbs ("proceed forward seven meters" is a move), an action a noun implies (algorithm,
+    battery), asking verbs; a yes/no question first of all."""
     actions = u.of("action")
-    weak = [e for e in actions if e.value == "get"]
-    out = [(e.value, e) for e in actions if e.value != "get"]
+    mission = [(e.value, e) for e in actions if e.value in ("standby", "resume")]
+    weak = [(e.value, e) for e in actions if e.value == "get"]
+    out = [(e.value, e) for e in actions if e.value not in ("get", "standby", "resume")]
     implied = _implied_action(u)
-    # a noun names its action ("... to the simple algorithm"); a bare number and unit only without a verb
-    if implied is not None and (not out or implied in ("set", "get")):
+    if implied in ("move", "turn") and not out:  # a bare number and unit: only beside no other verb
         out.append((implied, None))
-    out += [(e.value, e) for e in weak]
-    if u.tokens and u.tokens[0] in vocab.YES_NO_OPENERS and u.of("identity"):  # "is drone two airborne?"
+    out += mission
+    if implied in ("set", "get"):  # a noun names its action ("go back to the simple algorithm")
+        out.append((implied, None))
+    out += weak
+    if _asks_yes_or_no(u):  # "is drone two airborne?", "drone two, are you still in the air?"
         out.insert(0, ("get", None))
     seen, unique = set(), []
     for action, entity in out:
@@ -134,6 +139,14 @@ def _candidate_actions(u: Understanding) -> list[tuple[str, Entity | None]]:
             seen.add(action)
             unique.append((action, entity))
     return unique
+
+
+def _asks_yes_or_no(u: Understanding) -> bool:
+    identities = u.of("identity")
+    if not identities:
+        return False
+    first = identities[0].end if identities[0].start == 0 else 0  # after a leading "drone two,"
+    return first < len(u.tokens) and u.tokens[first] in vocab.YES_NO_OPENERS
 
 
 def _main_action(u: Understanding) -> Entity | None:
@@ -157,11 +170,13 @@ def _implied_action(u: Understanding) -> str | None:
     return None
 
 
-def _agent(u: Understanding) -> tuple[str | None, list[Entity]]:
+def _agent(u: Understanding, action: str) -> tuple[str | None, list[Entity]]:
     agents = [e for e in u.of("identity") if e.role != "target"]
     if not agents:
         return None, []
     values = {e.value for e in agents}
+    if action == "follow" and len(values) == 2 and "all" not in values:  # "drone one, lock on to drone two"
+        return agents[0].value.removeprefix("uav_"), agents[:1]
     if "all" in values:
         return "all", agents
     if len(values) > 1:
@@ -243,6 +258,9 @@ def _turn(u, agent, ids):
 
 def _follow(u, agent, ids):
     targets = [e for e in u.of("identity") if e.role == "target"]
+    named = [e for e in u.of("identity") if e.value not in ("all", f"uav_{agent}")]
+    if not targets and named:  # the other UAV named, even if not right after the verb
+        targets = named[:1]
     target_entities = targets[:1]
     if targets:
         target = int(targets[0].value.removeprefix("uav_"))

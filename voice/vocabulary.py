@@ -13,15 +13,16 @@ ACTIONS = {
     "take off": "take_off", "takeoff": "take_off", "lift off": "take_off", "liftoff": "take_off",
     "launch": "take_off", "get airborne": "take_off", "airborne": "take_off", "off the ground": "take_off",
     "in the air": "take_off", "into the air": "take_off",
-    "land": "land", "landing": "land", "back on the ground": "land", "down on the ground": "land",
+    "land": "land", "landing": "land", "landed": "land", "back on the ground": "land", "down on the ground": "land",
     "touch down": "land", "touchdown": "land", "set down": "land",
     "go": "move", "move": "move", "fly": "move", "head": "move", "travel": "move", "shift": "move",
     "translate": "move", "climb": "move", "rise": "move", "ascend": "move", "raise": "move",
     "descend": "move", "lower": "move", "drop": "move", "sink": "move", "come": "move", "step": "move",
-    "gain": "move", "advance": "move", "retreat": "move", "slide": "move", "drift": "move", "strafe": "move",
+    "gain": "move", "lose": "move", "advance": "move", "retreat": "move", "slide": "move", "drift": "move",
+    "strafe": "move",
     "turn": "turn", "rotate": "turn", "yaw": "turn", "spin": "turn", "do a": "turn",
     "follow": "follow", "following": "follow", "trail": "follow", "track": "follow", "chase": "follow",
-    "tail": "follow", "shadow": "follow",
+    "tail": "follow", "shadow": "follow", "stick with": "follow",
     "escort": "follow", "stay behind": "follow", "keep behind": "follow", "behind": "follow",
     "what": "get", "how": "get", "tell": "get", "report": "get", "give me": "get", "check": "get",
     "show": "get",
@@ -30,14 +31,15 @@ ACTIONS = {
     "pause": "standby", "hold": "standby", "hover": "standby", "stand by": "standby", "standby": "standby",
     "wait": "standby", "freeze": "standby", "halt": "standby", "stop": "standby", "suspend": "standby",
     "resume": "resume", "continue": "resume", "go on": "resume", "carry on": "resume", "proceed": "resume",
-    "unpause": "resume", "keep going": "resume", "restart": "resume",
+    "unpause": "resume", "keep going": "resume", "going again": "resume", "restart": "resume",
 }
 # Verbs that carry a direction of their own ("climb five meters").
 ACTION_DIRECTIONS = {"climb": "up", "rise": "up", "ascend": "up", "raise": "up", "gain": "up", "descend": "down",
-                     "lower": "down", "drop": "down", "sink": "down", "advance": "forward", "retreat": "backward"}
+                     "lower": "down", "drop": "down", "sink": "down", "lose": "down", "advance": "forward",
+                     "retreat": "backward"}
 # After these the next UAV named is the one to follow, not the one commanded.
-FOLLOW_TARGET_MARKERS = {"follow", "following", "trail", "track", "chase", "tail", "shadow", "escort", "stay behind",
-                         "keep behind", "behind", "after"}
+FOLLOW_TARGET_MARKERS = {"follow", "following", "trail", "stick with", "track", "chase", "tail", "shadow", "escort",
+                         "stay behind", "keep behind", "behind", "after"}
 
 INTENT_OF_ACTION = {"take_off": "basic_action", "land": "basic_action", "move": "basic_action",
                     "turn": "basic_action", "follow": "basic_action", "get": "parameters", "set": "algorithms",
@@ -74,8 +76,8 @@ UNITS = {
 
 PARAMETERS = {
     "battery": "battery", "battery level": "battery", "battery status": "battery", "charge": "battery",
-    "power": "battery",
-    "state": "state", "status": "state", "doing": "state", "mode": "state", "flying": "state", "landed": "state",
+    "power": "battery", "batteries": "battery", "juice": "battery",
+    "state": "state", "status": "state", "doing": "state", "mode": "state",
     "position": "position", "location": "position", "where": "position", "coordinates": "position",
 }
 
@@ -103,7 +105,7 @@ FILLERS = frozenset(
     "like to the a an of at by and it its is are be please thanks thank kindly let me us lets let's "
     "quickly slowly immediately straight some more another again also yeah yes alright there that this for "
     "in on with distance do does me my our we of away time after along stay keep remain start "
-    "height altitude over initiate still".split())
+    "height altitude over initiate still direction here".split())
 # A sentence opening with these asks yes or no about a UAV ("is drone two airborne?"): its state.
 YES_NO_OPENERS = ("is", "are", "has", "have", "did")
 NEGATIVE_WORDS = ("minus", "negative")

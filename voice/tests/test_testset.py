@@ -1,7 +1,8 @@
 """The typed test sets: every sentence gives exactly the command its case expects (target >= 98 %).
 
-commands.jsonl was written without the parser; held_out.jsonl later, by someone who had not seen the
-parser, after the parser was improved on the first set's failures, so it measures what tuning did not reach.
+Each set was written by someone who had not seen the parser, and first measured before any tuning on
+it (commands 94.8 %, held_out 90.0 %, fresh 90.8 %, in that order); the vocabulary was then widened on
+their misses, so here they guard against regressions. voice/README.md keeps the first figures.
 """
 import pytest
 
