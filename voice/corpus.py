@@ -18,6 +18,8 @@ DEFAULT_UAV_IDS = tuple(range(1, 10))
 SENTENCES_PER_TEMPLATE = 60
 LENGTHS = [*range(1, 31), 35, 40, 45, 50, 60, 70, 75, 80, 90, 100, 120, 150, 200, 0.5, 1.5, 2.5, 3.5, 0.25, 0.75]
 ANGLES = [5, 10, 15, 20, 25, 30, 40, 45, 60, 75, 90, 100, 120, 135, 150, 180, 200, 270, 360]
+FILLER_RATE = 0.3
+FILLER_WORDS = sorted(w for w in vocab.FILLERS if w.isalpha() and len(w) > 1 and w not in vocab.YES_NO_OPENERS)
 PREFIXES = ["", "", "", "please", "okay", "now", "uh", "um", "could you", "can you", "hey", "i want"]
 SUFFIXES = ["", "", "", "please", "now", "right now", "thanks", "okay"]
 
@@ -83,7 +85,8 @@ def _slot_values(uav_ids: list[int]) -> dict[str, list[str]]:
         "param": [p for p in vocab.PARAMETERS if p not in ("where", "doing")],
         "alg": spoken(vocab.ALGORITHMS) + ["the neural network"],
         "mission": list(vocab.MISSION_COMPONENTS),
-        "len": [say_number(v) for v in LENGTHS], "ang": [say_integer(v) for v in ANGLES],
+        "len": [say_number(v) for v in LENGTHS] + [f"{say_integer(v)} and a half" for v in (1, 2, 3, 4)] + ["half a"],
+        "ang": [say_integer(v) for v in ANGLES],
         "lunit": [u for u, (_, unit, _) in vocab.UNITS.items() if unit == "m" and len(u) > 2],
         "aunit": [u for u, (_, unit, _) in vocab.UNITS.items() if unit == "deg" and len(u) > 3],
     }
@@ -112,15 +115,19 @@ def labelled_sentences(uav_ids: Iterable[int] = DEFAULT_UAV_IDS, per_template: i
     sentences: list[tuple[str, str]] = []
     for action, templates in _templates().items():
         for template in templates:
+            # each slot walks its values from a random start, so every value turns up across the templates
+            starts = {name: rng.randrange(len(values)) for name, values in slots.items()}
             for n in range(per_template):
                 filled = template
+                if rng.random() < FILLER_RATE:  # people drop fillers after a name too: give the model those words
+                    filler = rng.choice(FILLER_WORDS)
+                    where = "{who}" if "{who}" in filled else ""
+                    filled = filled.replace(where, f"{where} {filler}", 1) if where else f"{filler} {filled}"
                 for name, values in slots.items():
-                    # walk the values in turn first, so each appears, then at random
-                    filled = filled.replace("{" + name + "}", values[n] if n < len(values) else rng.choice(values), 1)
+                    filled = filled.replace("{" + name + "}", values[(starts[name] + n) % len(values)], 1)
                     if "{" + name + "}" in filled:
                         filled = filled.replace("{" + name + "}", rng.choice(values))
-                sentence = " ".join(f"{rng.choice(PREFIXES)} {filled} {rng.choice(SUFFIXES)}".split())
-                sentences.append((sentence, action))
+                sentences.append((" ".join(f"{rng.choice(PREFIXES)} {filled} {rng.choice(SUFFIXES)}".split()), action))
     return sentences
 
 

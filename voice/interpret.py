@@ -98,7 +98,7 @@ def _reading(u: Understanding, action: str, action_entity: Entity | None, ids: l
     used: list[Entity] = [action_entity] if action_entity else []
     if action in ("standby", "resume"):
         return Command("mission", action, "all", (), _confidence(used))
-    if action == "get" and not u.of("parameter") and u.not_understood:  # "what's the weather like"
+    if action == "get" and action_entity and not u.of("parameter") and u.not_understood:  # "what's the weather like"
         return Question(f"Sorry, I can tell the battery, state or position of a UAV, not "
                         f"'{' '.join(u.not_understood)}'.", "parameter", {"action": "get"})
     agent, agent_entities = _agent(u, action)

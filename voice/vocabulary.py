@@ -19,7 +19,7 @@ ACTIONS = {
     "translate": "move", "climb": "move", "rise": "move", "ascend": "move", "raise": "move",
     "descend": "move", "lower": "move", "drop": "move", "sink": "move", "come": "move", "step": "move",
     "gain": "move", "lose": "move", "advance": "move", "retreat": "move", "slide": "move", "drift": "move",
-    "strafe": "move",
+    "strafe": "move", "bring": "move", "put": "move", "push": "move", "pull": "move", "nudge": "move",
     "turn": "turn", "rotate": "turn", "yaw": "turn", "spin": "turn", "do a": "turn",
     "follow": "follow", "following": "follow", "trail": "follow", "track": "follow", "chase": "follow",
     "tail": "follow", "shadow": "follow", "stick with": "follow",
@@ -107,7 +107,7 @@ FILLERS = frozenset(
     "in on with distance do does me my our we of away time after along stay keep remain start "
     "height altitude over initiate still direction here".split())
 # A sentence opening with these asks yes or no about a UAV ("is drone two airborne?"): its state.
-YES_NO_OPENERS = ("is", "are", "has", "have", "did")
+YES_NO_OPENERS = ("is", "are", "has", "did")
 NEGATIVE_WORDS = ("minus", "negative")
 # Numbers after these words belong to the identity ("drone number two"), not to a distance.
 ID_LINKERS = ("number",)
