@@ -18,6 +18,7 @@ COMMANDS: list[tuple[str, str]] = [
     ("mission", "magna_gs.mission.cli"),
     ("run", "magna_master.run_cli"),
     ("learn", "mlr.cli"),
+    ("voice", "voice.cli"),
 ]
 
 
@@ -26,7 +27,7 @@ class UsageError(Exception):
 
 
 def _project_packages_importable() -> None:
-    """mlr (and later voice) live at the repository root, beside the catkin packages, so a node
+    """mlr and voice live at the repository root, beside the catkin packages, so a node
     started by roslaunch does not see them: put the root on sys.path."""
     from magna_master.workspace import WorkspaceNotFound, find_root
 

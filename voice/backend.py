@@ -1,0 +1,91 @@
+"""The ROS side: a `Command` becomes a call of the ground station's /magna/gs/command service.
+
+rospy is imported only here, and only when a client is made, so parsing and transcribing work on
+a machine without ROS.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+from voice.interpret import Command, Parameter
+
+SERVICE = "/magna/gs/command"
+
+
+class BackendError(RuntimeError):
+    """The ground station cannot be reached; the message says what to start."""
+
+
+@dataclass(frozen=True)
+class Reply:
+    accepted: bool
+    message: str
+    values: list[Parameter] = field(default_factory=list)
+    sent_at: float = 0.0  # time.monotonic() when the request left
+
+    def describe(self) -> str:
+        head = ("done: " if self.accepted else "refused: ") + self.message
+        if not self.values:
+            return head
+        return head + "\n" + "\n".join(f"  {v.name}: {v.text or f'{v.number:.1f}'}{' ' + v.unit if v.unit else ''}"
+                                       for v in self.values)
+
+    def spoken(self) -> str:
+        """The answer as a short sentence for espeak-ng."""
+        if not self.accepted:
+            return "Refused. " + self.message
+        if not self.values:
+            return "Done. " + self.message
+        parts = []
+        for v in self.values:
+            who, _, what = v.name.partition(".")
+            value = v.text or (f"{v.number:.0f} percent" if v.unit == "%" else f"{v.number:.1f} {v.unit}")
+            parts.append(f"{who.replace('uav_', 'drone ')} {what.replace('.', ' ')} {value}")
+        return ". ".join(parts)
+
+
+def to_request_fields(command: Command) -> dict:
+    """The GroundStationCommand request fields, NamedValues as plain dicts (no ROS needed)."""
+    return {"intent": command.intent, "action": command.action, "agent": command.agent,
+            "parameters": [p.to_json() for p in command.parameters]}
+
+
+class GroundStationClient:
+    """Calls /magna/gs/command; one per process."""
+
+    def __init__(self, service: str = SERVICE, node_name: str = "magna_voice"):
+        import rospy
+        from magna_msgs.msg import NamedValue
+        from magna_msgs.srv import GroundStationCommand
+
+        self._rospy, self._named_value = rospy, NamedValue
+        self.service = service
+        if not rospy.core.is_initialized():
+            rospy.init_node(node_name, anonymous=True, disable_signals=True)
+        self._proxy = rospy.ServiceProxy(service, GroundStationCommand)
+
+    def wait(self, timeout: float) -> None:
+        try:
+            self._rospy.wait_for_service(self.service, timeout=timeout)
+        except self._rospy.ROSException:
+            raise BackendError(f"the ground station's {self.service} is not up after {timeout:g} s: start a mission "
+                               "(roslaunch magna_gs simulation.launch mission_file:=...) or check ROS_MASTER_URI; "
+                               "`magna voice --dry-run` understands commands without sending them") from None
+
+    def uav_ids(self) -> list[int]:
+        """The UAVs flying now (every UAL server lists its id in /ual_ids)."""
+        try:
+            return sorted(int(i) for i in self._rospy.get_param("/ual_ids", []))
+        except (TypeError, ValueError, self._rospy.ROSException):
+            return []
+
+    def send(self, command: Command) -> Reply:
+        values = [self._named_value(p.name, p.number, p.text, p.unit) for p in command.parameters]
+        sent_at = time.monotonic()
+        try:
+            answer = self._proxy(intent=command.intent, action=command.action, agent=command.agent, parameters=values)
+        except self._rospy.ServiceException as error:
+            raise BackendError(f"{self.service} failed: {error}") from None
+        return Reply(answer.accepted, answer.message,
+                     [Parameter(v.name, v.number, v.text, v.unit) for v in answer.values], sent_at)

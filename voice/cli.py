@@ -1,0 +1,230 @@
+"""`magna voice` and `python -m voice`: command a running mission by voice or keyboard.
+
+    magna voice [--keyboard | --mic | --audio FILE...]   the assistant (keyboard by default)
+    magna voice parse "SENTENCE" ...                     one JSON line per sentence: entities, command or question
+    magna voice transcribe FILE.wav ...                  the transcript and the same JSON
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+HELP = "command a running mission by voice or keyboard, offline: assistant, parse, transcribe"
+PROMPT = "magna voice> "
+
+
+class CliError(Exception):
+    """Bad input: printed as `magna voice: <message>`, exit status 2."""
+
+
+def _uav_ids(text: str | None) -> list[int]:
+    if not text:
+        return []
+    try:
+        ids = [int(part) for part in text.replace(",", " ").split()]
+    except ValueError:
+        raise CliError(f"--uavs {text!r}: give UAV ids separated by commas, e.g. --uavs 1,2,3") from None
+    if any(i <= 0 for i in ids):
+        raise CliError(f"--uavs {text!r}: UAV ids are positive integers")
+    return ids
+
+
+def _recognizer(args, uav_ids):
+    from voice.speech import make_recognizer
+
+    return make_recognizer(online=args.online, uav_ids=uav_ids)
+
+
+def _existing_files(paths: list[str]) -> list[Path]:
+    files = [Path(p) for p in paths]
+    missing = [str(p) for p in files if not p.is_file()]
+    if missing:
+        raise CliError(f"no such audio file: {', '.join(missing)}")
+    return files
+
+
+def cmd_parse(args) -> int:
+    from voice.interpret import parse
+
+    sentences = args.sentences
+    if sentences == ["-"]:
+        sentences = [line.strip() for line in sys.stdin if line.strip()]
+    if not sentences:
+        raise CliError("give at least one sentence, or - to read them from standard input")
+    ids = _uav_ids(args.uavs)
+    for sentence in sentences:
+        understanding, result = parse(sentence, ids)
+        print(json.dumps(_line(sentence, understanding, result)), flush=True)
+    return 0
+
+
+def _line(text, understanding, result) -> dict:
+    from voice.interpret import Command, wit_entities
+
+    is_command = isinstance(result, Command)
+    return {"text": text, "entities": wit_entities(understanding, result),
+            "command": result.to_json() if is_command else None,
+            "question": None if is_command else result.to_json()}
+
+
+def cmd_transcribe(args) -> int:
+    from voice.assistant import choose_hypothesis
+    from voice.audio import read_wav
+    from voice.interpret import parse
+
+    files = _existing_files(args.files)
+    ids = _uav_ids(args.uavs)
+    recognizer = _recognizer(args, ids)
+    for path in files:
+        transcript = recognizer.transcribe(read_wav(path))
+        text = choose_hypothesis([transcript.text, *transcript.alternatives], ids)
+        understanding, result = parse(text, ids)
+        line = {"file": str(path), "transcript": transcript.text, **_line(text, understanding, result),
+                "decode_seconds": round(transcript.seconds, 3)}
+        print(json.dumps(line), flush=True)
+    return 0
+
+
+def _assistant(args, ids, recognizer=None):
+    from voice.assistant import Assistant
+
+    say = None
+    if args.speak:
+        from voice.synth import speak
+
+        def say(text):
+            return speak(text)
+    if args.dry_run:
+        return Assistant(None, ids, say, recognizer)
+    from voice.backend import GroundStationClient
+
+    client = GroundStationClient(args.service)
+    print(f"waiting for the ground station ({args.service}) ...", file=sys.stderr)
+    client.wait(args.wait)
+    ids = ids or client.uav_ids()
+    return Assistant(client.send, ids, say, recognizer)
+
+
+def cmd_assistant(args) -> int:
+    from voice.assistant import render
+    from voice.backend import BackendError
+
+    ids = _uav_ids(args.uavs)
+    audio = args.mic or args.audio
+    if args.mic:  # fail early and clearly when there is no microphone
+        from voice.audio import NoAudioDevice, list_input_devices
+
+        if not list_input_devices():
+            raise CliError(str(NoAudioDevice("no audio input device found: plug in a microphone, or use --keyboard "
+                                             "(type the sentences) or --audio FILE.wav")))
+    recognizer = _recognizer(args, ids) if audio else None
+    try:
+        assistant = _assistant(args, ids, recognizer)
+    except BackendError as error:
+        raise CliError(str(error)) from None
+    if args.audio:
+        from voice.audio import read_wav
+
+        for path in _existing_files(args.audio):
+            print(render(assistant.handle_audio(read_wav(path))), flush=True)
+        return 0
+    if args.mic:
+        return _listen(args, assistant)
+    return _keyboard(assistant)
+
+
+def _keyboard(assistant) -> int:
+    from voice.assistant import render
+
+    interactive = sys.stdin.isatty()
+    if interactive:
+        print("Type a command (e.g. 'drone one, take off to three meters'); 'quit' or Ctrl-D ends.")
+    while True:
+        try:
+            line = input(PROMPT) if interactive else sys.stdin.readline()
+        except EOFError:
+            return 0
+        if not interactive and not line:
+            return 0
+        line = line.strip()
+        if line.lower() in ("quit", "exit"):
+            return 0
+        if line:
+            print(render(assistant.handle_text(line)), flush=True)
+
+
+def _listen(args, assistant) -> int:
+    from voice.assistant import render
+    from voice.audio import VoiceActivityDetector, listen, microphone_chunks
+
+    out_dir = Path(args.utterances)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    detector = VoiceActivityDetector(silence_seconds=args.silence)
+    print(f"listening (utterances saved in {out_dir}); Ctrl-C ends", file=sys.stderr)
+    for path, samples in listen(microphone_chunks(device=args.device), detector, out_dir):
+        print(f"[{path.name}]", flush=True)
+        print(render(assistant.handle_audio(samples, utterance_end=time.monotonic())), flush=True)
+    return 0
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.formatter_class = argparse.RawDescriptionHelpFormatter
+    parser.epilog = ("examples:\n"
+                     "  magna voice                                   type commands to the running mission\n"
+                     "  magna voice --mic --speak                     speak them; answers spoken back\n"
+                     "  magna voice parse \"drone two, go up five meters\"\n"
+                     "  magna voice transcribe command.wav")
+    source = parser.add_mutually_exclusive_group()
+    source.add_argument("--keyboard", action="store_true", help="type sentences (the default)")
+    source.add_argument("--mic", action="store_true", help="listen to the microphone (voice-activity detection)")
+    source.add_argument("--audio", nargs="+", metavar="FILE.wav", help="take the utterances from WAV files")
+    parser.add_argument("--online", action="store_true",
+                        help="use Google's online recogniser instead of the offline one (needs internet)")
+    parser.add_argument("--speak", action="store_true", help="speak questions and answers back with espeak-ng")
+    parser.add_argument("--dry-run", action="store_true", help="understand and print, send nothing (no ROS needed)")
+    parser.add_argument("--uavs", metavar="IDS", help="UAV ids, e.g. 1,2,3 (default: the ids in /ual_ids)")
+    parser.add_argument("--service", default="/magna/gs/command", help="the ground station's command service")
+    parser.add_argument("--wait", type=float, default=30.0, metavar="S", help="seconds to wait for the service")
+    parser.add_argument("--device", default=None, help="microphone: a sounddevice input device (index or name)")
+    parser.add_argument("--silence", type=float, default=0.8, metavar="S",
+                        help="microphone: seconds of silence that end an utterance")
+    parser.add_argument("--utterances", default="voice_utterances", metavar="DIR",
+                        help="microphone: where each utterance is saved as a WAV")
+    parser.set_defaults(_voice=cmd_assistant)
+    sub = parser.add_subparsers(dest="voice_command", metavar="{parse,transcribe}")
+    parse_p = sub.add_parser("parse", help="print the entities and the command (or question) of each sentence",
+                             description="One JSON line per sentence: entities with confidences, and the "
+                                         "ground-station command it maps to or the question it would ask back.")
+    parse_p.add_argument("sentences", nargs="*", help="sentences; - reads one per line from standard input")
+    parse_p.add_argument("--uavs", metavar="IDS", help="UAV ids the questions offer, e.g. 1,2,3")
+    parse_p.set_defaults(_voice=cmd_parse)
+    trans = sub.add_parser("transcribe", help="transcribe WAV files and print the transcript and the same JSON",
+                           description="Speech to text (offline by default), then the same JSON as parse.")
+    trans.add_argument("files", nargs="+", metavar="FILE.wav")
+    trans.add_argument("--online", action="store_true", help="Google's online recogniser (needs internet)")
+    trans.add_argument("--uavs", metavar="IDS", help="UAV ids the speech model expects (default 1..9)")
+    trans.set_defaults(_voice=cmd_transcribe)
+
+
+def run(args) -> int:
+    try:
+        return args._voice(args)
+    except CliError as error:
+        print(f"magna voice: {error}", file=sys.stderr)
+        return 2
+    except Exception as error:  # the frontend's and recogniser's errors carry their own clear message
+        from voice.errors import USER_ERRORS
+
+        if isinstance(error, USER_ERRORS):
+            print(f"magna voice: {error}", file=sys.stderr)
+            return 2
+        raise
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m voice", description=HELP)
+    add_arguments(parser)
+    return run(parser.parse_args(argv))
