@@ -62,6 +62,12 @@ class GroundStationClient:
         self._rospy, self._named_value = rospy, NamedValue
         self.service = service
         if not rospy.core.is_initialized():
+            import rosgraph
+
+            if not rosgraph.is_master_online():  # else init_node would wait for a master forever
+                raise BackendError(f"no ROS master at {rosgraph.get_master_uri()}: start the mission (roslaunch "
+                                   "magna_gs simulation.launch mission_file:=...) or set ROS_MASTER_URI; "
+                                   "`magna voice --dry-run` understands commands without sending them")
             rospy.init_node(node_name, anonymous=True, disable_signals=True)
         self._proxy = rospy.ServiceProxy(service, GroundStationCommand)
 

@@ -4,6 +4,8 @@ import json
 import subprocess
 import sys
 
+import pytest
+
 from tests.support import ROOT
 from voice.assistant import Assistant, choose_hypothesis, render
 from voice.backend import BackendError, Reply
@@ -95,3 +97,27 @@ def test_bad_input_is_named_with_its_fix():
     missing = subprocess.run([sys.executable, "-m", "voice", "transcribe", "/nonexistent/x.wav"],
                              capture_output=True, text=True, cwd=ROOT, timeout=60)
     assert missing.returncode == 2 and "no such audio file: /nonexistent/x.wav" in missing.stderr
+
+
+def _voice_env(uri):
+    import os
+
+    return {**os.environ, "ROS_MASTER_URI": uri}
+
+
+def test_without_a_ros_master_the_assistant_says_what_to_start():
+    from magna_master.ros_master import free_port
+
+    result = subprocess.run([sys.executable, "-m", "voice", "--wait", "1"], input="drone one land\n",
+                            env=_voice_env(f"http://127.0.0.1:{free_port()}"), capture_output=True, text=True,
+                            cwd=ROOT, timeout=60)
+    assert result.returncode == 2 and "no ROS master at http://127.0.0.1:" in result.stderr, result.stderr
+
+
+@pytest.mark.ros
+def test_without_a_ground_station_the_assistant_says_what_to_start(fresh_ros_master):
+    result = subprocess.run([sys.executable, "-m", "voice", "--wait", "1"], input="drone one land\n",
+                            env=_voice_env(fresh_ros_master.env()["ROS_MASTER_URI"]), capture_output=True,
+                            text=True, cwd=ROOT, timeout=60)
+    assert result.returncode == 2, result.stderr
+    assert "the ground station's /magna/gs/command is not up after 1 s" in result.stderr
