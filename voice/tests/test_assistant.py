@@ -1,5 +1,6 @@
-"""The assistant's dialogue without ROS: commands are sent once, questions send nothing, an answer
-to a question completes the sentence that raised it, and an unsure command waits for a yes."""
+"""The assistant's dialogue (no ROS): commands are sent once, questions send nothing, an answer to a
+question completes the sentence that raised it, and an unsure command waits for a yes. Then its
+command line, and what it says when there is no ROS master or no ground station."""
 import json
 import subprocess
 import sys
