@@ -14,7 +14,7 @@ import numpy as np
 
 from voice.backend import BackendError, Reply
 from voice.entities import Understanding, tokenize
-from voice.interpret import Command, Parameter, Question, parse, wit_entities
+from voice.interpret import Command, Parameter, Question, parameter_json, parse, wit_entities
 
 YES = {"yes", "yeah", "yep", "correct", "confirm", "confirmed", "affirmative", "exactly"}
 NO = {"no", "nope", "cancel", "negative", "wrong", "not"}
@@ -36,7 +36,7 @@ class Outcome:
                "question": self.result.to_json() if isinstance(self.result, Question) else None}
         if self.reply is not None:
             out["reply"] = {"accepted": self.reply.accepted, "message": self.reply.message,
-                            "values": [v.to_json() for v in self.reply.values]}
+                            "values": [parameter_json(v) for v in self.reply.values]}
         if self.error:
             out["error"] = self.error
         return out

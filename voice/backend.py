@@ -8,7 +8,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
-from voice.interpret import Command, Parameter
+from voice.interpret import Command, Parameter, parameter_json
 
 SERVICE = "/magna/gs/command"
 
@@ -48,7 +48,7 @@ class Reply:
 def to_request_fields(command: Command) -> dict:
     """The GroundStationCommand request fields, NamedValues as plain dicts (no ROS needed)."""
     return {"intent": command.intent, "action": command.action, "agent": command.agent,
-            "parameters": [p.to_json() for p in command.parameters]}
+            "parameters": [parameter_json(p) for p in command.parameters]}
 
 
 class GroundStationClient:

@@ -9,6 +9,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 
+from magna_gs.commands import Param as Parameter  # the ground station's own magna_msgs/NamedValue
 from voice import vocabulary as vocab
 from voice.entities import Entity, Understanding, understand
 
@@ -16,17 +17,8 @@ MIN_CONFIDENCE = 0.85  # a word read through a typo of similarity 0.80-0.85 is c
 LENGTH, ANGLE = "m", "deg"
 
 
-@dataclass(frozen=True)
-class Parameter:
-    """One magna_msgs/NamedValue."""
-
-    name: str
-    number: float = 0.0
-    text: str = ""
-    unit: str = ""
-
-    def to_json(self) -> dict:
-        return {"name": self.name, "number": self.number, "text": self.text, "unit": self.unit}
+def parameter_json(p: Parameter) -> dict:
+    return {"name": p.name, "number": p.number, "text": p.text, "unit": p.unit}
 
 
 @dataclass(frozen=True)
@@ -39,7 +31,7 @@ class Command:
 
     def to_json(self) -> dict:
         return {"intent": self.intent, "action": self.action, "agent": self.agent,
-                "parameters": [p.to_json() for p in self.parameters]}
+                "parameters": [parameter_json(p) for p in self.parameters]}
 
     def describe(self) -> str:
         who = "all UAVs" if self.agent == "all" else f"UAV {self.agent}"
