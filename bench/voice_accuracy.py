@@ -149,7 +149,7 @@ def latency(n, recognizer):
                 utterances = detector.feed(stream[offset:offset + chunk])
                 if utterances:
                     handed_over = time.monotonic()
-                    outcome = assistant.handle_audio(utterances[0], utterance_end=handed_over)
+                    outcome = assistant.handle_audio(utterances[0])
                     decode.append(outcome.transcript_seconds)
                     break
             if len(arrivals) > before:

@@ -6,7 +6,6 @@ to confirm a command it was unsure of, "yes" sends that command and "no" drops i
 """
 from __future__ import annotations
 
-import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
@@ -28,7 +27,6 @@ class Outcome:
     reply: Reply | None = None
     error: str = ""
     transcript_seconds: float = 0.0  # speech: decoding time
-    utterance_end: float = 0.0  # time.monotonic() at the end of the utterance, when known
 
     def to_json(self) -> dict:
         out = {"text": self.heard, "entities": wit_entities(self.understanding, self.result),
@@ -65,7 +63,7 @@ class Assistant:
         self._pending: str | None = None  # the sentence that raised the last question
         self._to_confirm: Command | None = None  # the command the last question asked to confirm
 
-    def handle_text(self, text: str, utterance_end: float = 0.0) -> Outcome:
+    def handle_text(self, text: str) -> Outcome:
         heard = text
         understanding, result = parse(text, self.uav_ids)
         if self._to_confirm is not None and not understanding.of("action"):
@@ -75,12 +73,12 @@ class Assistant:
                 return Outcome(text, understanding, Question("Cancelled: nothing was sent.", "cancelled"))
             if words & YES:
                 result, self._to_confirm = self._to_confirm, None
-                return self._send(Outcome(text, understanding, result, utterance_end=utterance_end))
+                return self._send(Outcome(text, understanding, result))
         if self._pending is not None and not understanding.of("action"):
             completed = f"{self._pending} {text}"
             understanding, result = parse(completed, self.uav_ids)
             heard = completed
-        outcome = Outcome(heard, understanding, result, utterance_end=utterance_end)
+        outcome = Outcome(heard, understanding, result)
         self._to_confirm = None
         if isinstance(result, Question):
             self._pending = heard if result.missing in ("identity", "number", "direction", "algorithm") else None
@@ -101,13 +99,12 @@ class Assistant:
                 self._speak(outcome.reply.spoken())
         return outcome
 
-    def handle_audio(self, samples: np.ndarray, utterance_end: float | None = None) -> Outcome:
+    def handle_audio(self, samples: np.ndarray) -> Outcome:
         if self.recognizer is None:
             raise RuntimeError("no recogniser: build the Assistant with one to handle audio")
-        end = time.monotonic() if utterance_end is None else utterance_end
         transcript = self.recognizer.transcribe(samples)
         text = choose_hypothesis([transcript.text, *transcript.alternatives], self.uav_ids)
-        outcome = self.handle_text(text, utterance_end=end)
+        outcome = self.handle_text(text)
         outcome.transcript_seconds = transcript.seconds
         return outcome
 

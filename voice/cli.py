@@ -9,7 +9,6 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import time
 from pathlib import Path
 
 HELP = "command a running mission by voice or keyboard, offline: assistant, parse, transcribe"
@@ -93,10 +92,7 @@ def _assistant(args, ids, recognizer=None):
 
     say = None
     if args.speak:
-        from voice.synth import speak
-
-        def say(text):
-            return speak(text)
+        from voice.synth import speak as say
     if args.dry_run:
         return Assistant(None, ids, say, recognizer)
     from voice.backend import GroundStationClient
@@ -166,7 +162,7 @@ def _listen(args, assistant) -> int:
     print(f"listening (utterances saved in {out_dir}); Ctrl-C ends", file=sys.stderr)
     for path, samples in listen(microphone_chunks(device=args.device), detector, out_dir):
         print(f"[{path.name}]", flush=True)
-        print(render(assistant.handle_audio(samples, utterance_end=time.monotonic())), flush=True)
+        print(render(assistant.handle_audio(samples)), flush=True)
     return 0
 
 
