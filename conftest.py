@@ -50,3 +50,11 @@ def fresh_ros_master(tmp_path):
 
     with RosMaster(log_dir=tmp_path / "ros_log") as master:
         yield master
+
+
+@pytest.fixture(scope="session")
+def recorded_run(tmp_path_factory):
+    """One real simulation, flown once per session (tests/recorded_run.py): mlr and magna_viz read it."""
+    from tests.recorded_run import record_run
+
+    return record_run(tmp_path_factory.mktemp("recorded_run"))

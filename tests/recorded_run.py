@@ -1,10 +1,10 @@
-"""Fixtures of the mlr tests.
+"""One real simulation recorded once per test session, for every test that reads a bag and CSVs.
 
-`recorded_run` flies one real simulation (the whole stack through `magna run`) once per test
-session, so that tests can read a real recorder CSV and bag: the project's mission
-Gym/2UAVs_Crossing_ORCA (two iris UAVs cross with ORCA-3D; take-off, path, landing) in the
-world Gym/Central_Obstacle_Torus, at a fixed 5x real time (as tests/test_missions_fly.py runs
-missions: results must not depend on how busy the machine is). About 20 s of wall time.
+`recorded_run` (root conftest.py) flies the project's mission Gym/2UAVs_Crossing_ORCA (two iris
+UAVs cross with ORCA-3D; take-off, path, landing) in the world Gym/Central_Obstacle_Torus through
+the whole stack (`magna run`), at a fixed 5x real time (as tests/test_missions_fly.py runs
+missions: results must not depend on how busy the machine is). About 20 s of wall time. mlr
+reads its steps, magna_viz replays its bag and draws its plots and report.
 """
 from __future__ import annotations
 
@@ -13,8 +13,6 @@ import os
 import subprocess
 from dataclasses import dataclass
 from pathlib import Path
-
-import pytest
 
 from tests.support import ROOT
 
@@ -53,16 +51,16 @@ def _processes_with(token: str) -> list[int]:
     return alive
 
 
-@pytest.fixture(scope="session")
-def recorded_run(tmp_path_factory) -> RecordedRun:
-    run = RecordedRun(data_root=tmp_path_factory.mktemp("recorded_run"), sim_dir=Path())
+def record_run(data_root: Path) -> RecordedRun:
+    """Fly the simulation into `data_root` and check it ended well and left no process behind."""
+    run = RecordedRun(data_root=data_root, sim_dir=Path())
     # Every process of the batch inherits this token, so any one left running afterwards is found.
-    token = f"magna-mlr-recorded-run-{os.getpid()}"
+    token = f"magna-recorded-run-{os.getpid()}"
     command = [str(ROOT / "magna"), "run", "--world", f"{run.world}/{run.subworld}",
                "--mission", f"{run.mission}/{run.submission}", "--n-iter", "1", "--rtf", "5",
                "--data-root", str(run.data_root), "--name", run.name, "--dataset", str(run.dataset)]
     done = subprocess.run(command, capture_output=True, text=True, cwd=ROOT, stdin=subprocess.DEVNULL,
-                          env=dict(os.environ, MAGNA_MLR_RUN_TOKEN=token), timeout=900)
+                          env=dict(os.environ, MAGNA_RECORDED_RUN_TOKEN=token), timeout=900)
     assert done.returncode == 0, f"{' '.join(command)}\n{done.stdout}\n{done.stderr}"
     assert _processes_with(token) == [], "processes of the recorded run are still running"
     sims = sorted(run.selection().dataset_dirs()[0].glob("simulation_*"))
