@@ -1,0 +1,1 @@
+"""magna_viz: see a mission (rviz scene and replay, plots from the bag and the CSVs, reports)."""
