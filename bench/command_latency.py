@@ -16,7 +16,8 @@ Per fleet size N, in a process of its own (rospy allows one node per process):
 Prints p50 / p90 / p99 per fleet size, the service's round trip, the same latency in simulated time
 (stamp of that velocity message minus the /clock at the call), how fast the simulation really ran,
 and the growth of p50 from 1 to 10 UAVs, against DESIGN.md section 6: p50 <= 50 ms wall, growing
-<= 20% from 1 to 10 UAVs. Saves bench/pictures/command_latency.png (box plot and CDF per fleet size).
+<= 20% from 1 to 10 UAVs. Saves bench/pictures/command_latency.png (box plot and CDF per fleet size, the
+figure of magna_viz.plots.plot_latency_distribution).
 Never fails on a time. The default run takes about 8 minutes.
 
     bash scripts/with_env.sh python bench/command_latency.py [--fleets 1 2 3 10] [--trials 30] [--agent 1|all]
@@ -262,35 +263,16 @@ def percentile(values, q: float) -> float:
 
 
 def draw(rows: list[dict], path: Path, agent: str) -> None:
-    import matplotlib
+    """Box plot and CDF of the wall latency per fleet size, with the p50 target: the figure magna_viz's
+    per-simulation reports also draw (magna_viz.plots.plot_latency_distribution)."""
+    from magna_viz.plots import plot_latency_distribution
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    shown = [r for r in rows if r["latency"]]
-    fig, (box, cdf) = plt.subplots(1, 2, figsize=(11, 4.2))
-    box.boxplot([np.array(r["latency"]) * 1000 for r in shown], whis=(5, 95), showfliers=True)
-    box.set_xticks(range(1, len(shown) + 1), [str(r["n"]) for r in shown])
-    box.axhline(TARGET_P50_S * 1000, color="tab:red", linestyle="--", linewidth=1, label="target p50 50 ms")
-    box.set_xlabel("UAVs in the simulation")
-    box.set_ylabel("command -> first motion of UAV 1 (ms, wall)")
-    box.set_title("latency per fleet size (whiskers p5-p95)")
-    box.legend(loc="upper left")
-    for r in shown:
-        values = np.sort(np.array(r["latency"]) * 1000)
-        cdf.step(np.concatenate([[values[0]], values]), np.arange(0, len(values) + 1) / len(values), where="post",
-                 label=f"{r['n']} UAV" + ("s" if r["n"] > 1 else ""))
-    cdf.axvline(TARGET_P50_S * 1000, color="tab:red", linestyle="--", linewidth=1)
-    cdf.axhline(0.5, color="grey", linestyle=":", linewidth=1)
-    cdf.set_xlabel("latency (ms, wall)")
-    cdf.set_ylabel("fraction of commands")
-    cdf.set_title("CDF")
-    cdf.legend(loc="lower right")
-    fig.suptitle(f"/magna/gs/command basic_action move 0.5 m (agent {agent}) -> /uav_1/ual/velocity, rtf 1.0")
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    samples = {f"{r['n']} UAV" + ("s" if r["n"] > 1 else ""): np.array(r["latency"]) * 1000 for r in rows
+               if r["latency"]}
+    plot_latency_distribution(
+        samples, path, f"/magna/gs/command basic_action move 0.5 m (agent {agent}) -> /uav_1/ual/velocity, rtf 1.0",
+        "ms", value_label="command -> first motion of UAV 1 (ms, wall)", group_label="UAVs in the simulation",
+        reference=(TARGET_P50_S * 1000, "target p50 50 ms"))
 
 
 def run_worker(argv: list[str]) -> None:
