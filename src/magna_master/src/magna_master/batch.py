@@ -61,7 +61,7 @@ DEFAULT_LAUNCH_COMMAND: tuple[str, ...] = (
     "output:={output}", "button_timeout:={button_timeout}",
 )
 PLACEHOLDERS = ("mission_file", "world", "subworld", "worlds_path", "data_dir", "rtf", "seed", "bag", "save_data",
-                "output", "mission", "submission", "n_simulation", "button_timeout")
+                "output", "mission", "submission", "n_simulation", "button_timeout", "rviz")
 
 
 class BatchError(RuntimeError):
@@ -290,6 +290,7 @@ class BatchConfig:
     shutdown_timeout: float = 10.0  # between SIGINT, SIGTERM and SIGKILL to the launch
     launch_command: Sequence[str] = DEFAULT_LAUNCH_COMMAND
     output: str = "log"  # roslaunch output of the nodes: log or screen
+    rviz: bool = False  # rviz on the display for each simulation (magna_viz rviz.launch); needs DISPLAY
 
     @property
     def key(self) -> storage.StorageKey:
@@ -380,7 +381,7 @@ def hyperparameters(config: BatchConfig, m: int, plan: storage.StoragePlan) -> d
     return {
         "world": i.world, "subworld": i.subworld, "mission": i.mission, "submission": i.submission,
         "n_dataset": config.n_dataset, "n_simulation": m, "N_iter": config.n_iter,
-        "sm_view": False, "save_data": plan.save, "save_bag": plan.save and config.bag, "rviz": False,
+        "sm_view": False, "save_data": plan.save, "save_bag": plan.save and config.bag, "rviz": config.rviz,
         "seed": config.seed_of(m),
     }
 
@@ -393,13 +394,15 @@ def launch_command(config: BatchConfig, m: int, data_dir: Path | None, plan: sto
         "worlds_path": str(i.worlds_path), "data_dir": str(data_dir) if data_dir is not None else "",
         "rtf": config.rtf, "seed": str(config.seed_of(m)), "bag": _bool(plan.save and config.bag),
         "save_data": _bool(plan.save), "output": config.output, "mission": i.mission, "submission": i.submission,
-        "n_simulation": str(m), "button_timeout": f"{config.button_timeout:g}",
+        "n_simulation": str(m), "button_timeout": f"{config.button_timeout:g}", "rviz": _bool(config.rviz),
     }
     argv = []
     for arg in config.launch_command:
         for key, value in values.items():
             arg = arg.replace("{" + key + "}", value)
         argv.append(arg)
+    if config.rviz and config.uses_default_launch():
+        argv.append("rviz:=true")
     return argv
 
 
@@ -422,6 +425,11 @@ def preflight(config: BatchConfig) -> None:
         raise BatchError(f"output must be log or screen, got {config.output!r}")
     if not config.launch_command:
         raise BatchError("the launch command is empty")
+    if config.rviz and not os.environ.get("DISPLAY"):
+        raise BatchError("--rviz needs a display and DISPLAY is not set; run without --rviz and watch a "
+                         "simulation afterwards with `magna replay --headless SIM_DIR` (screenshots, GIF, MP4)")
+    if config.rviz and shutil.which("rviz") is None:
+        raise BatchError("--rviz: rviz is not on PATH; install the Debian package rviz (make setup)")
     if shutil.which("rosmaster") is None:
         raise BatchError("rosmaster is not on PATH: run through ./magna or source devel/setup.bash (make setup)")
     program = config.launch_command[0]

@@ -1,0 +1,100 @@
+"""The scene node: the UAVs of a mission drawn for rviz, live or from a bag (magna_viz.scene does the drawing).
+
+    rosrun magna_viz scene _mission_file:=/path/mission.json [_topic:=/magna/viz/scene] [_scale:=0]
+
+It subscribes, for every agent of the mission, to /uav_ID/ual/pose (geometry_msgs/PoseStamped),
+/magna/uav_ID/path/raw and /path/smoothed (nav_msgs/Path) and /magna/uav_ID/goal (PoseStamped),
+and publishes a latched visualization_msgs/MarkerArray on ~topic whenever something changed, at
+most ~rate times per wall-clock second (a display paces itself by the wall clock, whatever the
+simulated time does).
+
+Replays also pass the world through it: with ~world_in set, MarkerArrays from that topic are
+republished (latched) on ~world_out, and with ~keep_world a message that only deletes (the world
+node clearing the world when the mission ends) is dropped, so the last frame still shows the world.
+"""
+from __future__ import annotations
+
+import threading
+import time
+
+import rospy
+from geometry_msgs.msg import PoseStamped
+from nav_msgs.msg import Path as PathMsg
+from visualization_msgs.msg import MarkerArray
+
+from magna_viz.rviz_config import family_of
+from magna_viz.scene import DEFAULT_TOPIC, Scene, is_clear_only, styles_from_mission
+
+
+class SceneNode:
+    def __init__(self):
+        mission_file = rospy.get_param("~mission_file", "")
+        if not mission_file:
+            raise SystemExit("scene: set ~mission_file (the mission JSON whose agents to draw)")
+        styles = styles_from_mission(mission_file)
+        scale = float(rospy.get_param("~scale", 0.0))
+        if scale <= 0:
+            family = family_of(str(rospy.get_param("/magna/hyperparameters/world", "")))
+            scale = family.marker_scale if family is not None else 1.0
+        self.scene = Scene(styles, scale=scale, max_trail=int(rospy.get_param("~max_trail", 0)))
+        self.rate = max(float(rospy.get_param("~rate", 10.0)), 0.5)
+        self.lock = threading.Lock()
+        self.pub = rospy.Publisher(rospy.get_param("~topic", DEFAULT_TOPIC), MarkerArray, queue_size=2, latch=True)
+        self.subscribers = []
+        for style in styles:
+            i = style.id
+            self.subscribers += [
+                rospy.Subscriber(f"/uav_{i}/ual/pose", PoseStamped, self._pose, i, queue_size=50),
+                rospy.Subscriber(f"/magna/uav_{i}/path/raw", PathMsg, self._path, (i, False), queue_size=2),
+                rospy.Subscriber(f"/magna/uav_{i}/path/smoothed", PathMsg, self._path, (i, True), queue_size=2),
+                rospy.Subscriber(f"/magna/uav_{i}/goal", PoseStamped, self._goal, i, queue_size=10),
+            ]
+        world_in = rospy.get_param("~world_in", "")
+        if world_in:
+            self.keep_world = bool(rospy.get_param("~keep_world", True))
+            self.world_pub = rospy.Publisher(rospy.get_param("~world_out", "/magna/world/markers"), MarkerArray,
+                                             queue_size=2, latch=True)
+            self.subscribers.append(rospy.Subscriber(world_in, MarkerArray, self._world, queue_size=5))
+        rospy.loginfo(f"scene: drawing UAVs {', '.join(s.name for s in styles)} of {mission_file} "
+                      f"(scale {scale:g})")
+
+    def _pose(self, msg: PoseStamped, uav_id: int) -> None:
+        p, q = msg.pose.position, msg.pose.orientation
+        with self.lock:
+            self.scene.update_pose(uav_id, (p.x, p.y, p.z), (q.x, q.y, q.z, q.w), msg.header.stamp.to_sec())
+
+    def _path(self, msg: PathMsg, key) -> None:
+        uav_id, smoothed = key
+        points = [(s.pose.position.x, s.pose.position.y, s.pose.position.z) for s in msg.poses]
+        with self.lock:
+            self.scene.update_path(uav_id, points, smoothed)
+
+    def _goal(self, msg: PoseStamped, uav_id: int) -> None:
+        p = msg.pose.position
+        with self.lock:
+            self.scene.update_goal(uav_id, (p.x, p.y, p.z))
+
+    def _world(self, msg: MarkerArray) -> None:
+        if self.keep_world and is_clear_only(msg):
+            return
+        self.world_pub.publish(msg)
+
+    def spin(self) -> None:
+        period = 1.0 / self.rate
+        while not rospy.is_shutdown():
+            with self.lock:
+                markers = self.scene.markers() if self.scene.changed else None
+            if markers is not None:
+                self.pub.publish(markers)
+            time.sleep(period)  # wall clock on purpose: see the module's docstring
+
+
+def main(argv=None) -> int:
+    rospy.init_node("magna_scene", argv=argv)
+    try:
+        node = SceneNode()
+    except ValueError as err:  # a bad mission file (magna_uav.config.ConfigError)
+        rospy.logfatal(f"scene: {err}")
+        return 2
+    node.spin()
+    return 0
