@@ -17,6 +17,8 @@ COMMANDS: list[tuple[str, str]] = [
     ("world", "magna_worlds.cli"),
     ("mission", "magna_gs.mission.cli"),
     ("run", "magna_master.run_cli"),
+    ("replay", "magna_viz.replay_cli"),
+    ("report", "magna_viz.report_cli"),
     ("learn", "mlr.cli"),
     ("voice", "voice.cli"),
 ]

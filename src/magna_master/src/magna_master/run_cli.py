@@ -1,7 +1,7 @@
 """`magna run`: a batch of simulations of one mission in one world, saved under the data root.
 
     magna run --world Gym/1Obs_Central_Cylinder --mission Gym/2UAVs_2paths_Central_Cylinder --n-iter 5 \\
-        [--name NAME] [--dataset N] [--rtf max] [--seed S] [--no-bag] [--no-data] [--search-path DIR ...] \\
+        [--name NAME] [--dataset N] [--rtf max] [--seed S] [--no-bag] [--no-data] [--rviz] [--search-path DIR ...] \\
         [--data-root DIR] [--append|--overwrite|--skip-save] [--time-limit SECONDS] [--launch-command CMD]
 
 Exit status: 0 when every simulation ran to a mission outcome (a failed mission is data, not an
@@ -65,6 +65,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-bag", action="store_true", help="do not record a bag per simulation")
     parser.add_argument("--no-data", action="store_true",
                         help="save nothing (no folders, no summary); the table is printed at the end")
+    parser.add_argument("--no-report", action="store_true",
+                        help="do not write each simulation's report.html and the dataset's index.html "
+                             "(`magna report` writes them later)")
+    parser.add_argument("--rviz", action="store_true",
+                        help="show each simulation in rviz as it flies (needs a display; without one use "
+                             "`magna replay --headless` afterwards)")
     parser.add_argument("--search-path", action="append", default=[], type=Path, metavar="DIR",
                         help="also look for worlds and missions here, first (repeatable)")
     parser.add_argument("--data-root", type=Path, default=storage.DEFAULT_DATA_ROOT, metavar="DIR",
@@ -109,7 +115,7 @@ def build_config(args):
                        seed=args.seed, bag=not args.no_bag, save_data=not args.no_data,
                        data_root=args.data_root, policy=args.policy,
                        time_limit=args.time_limit or None, button_timeout=args.button_timeout,
-                       launch_command=command)
+                       launch_command=command, rviz=args.rviz)
 
 
 def run(args) -> int:
@@ -120,17 +126,54 @@ def run(args) -> int:
     try:
         config = build_config(args)
         ask = storage.ask_policy if sys.stdin is not None and sys.stdin.isatty() else None
-        result = run_batch(config, ask=ask)
+        reports = None if args.no_report or not config.save_data else Reports()
+        result = run_batch(config, ask=ask, on_simulation=reports)
     except (BatchError, storage.StorageError) as err:
         raise UsageError(str(err)) from None
     print(format_summary(result), flush=True)
-    if result.dataset_dir is not None and result.dataset_dir.is_dir() and not result.interrupted:
+    saved = result.dataset_dir is not None and result.dataset_dir.is_dir()
+    if saved and not result.interrupted:
         pictures = draw_pictures(config, result.dataset_dir)
         if pictures:
             print("pictures: " + ", ".join(str(p) for p in pictures), flush=True)
+    if saved and reports is not None:
+        reports.finish(result.dataset_dir)
     if result.interrupted:
         return 130
     return 1 if result.failed_to_run else 0
+
+
+class Reports:
+    """Writes each simulation's report.html as the batch goes (magna_viz.report), then the dataset's index.
+
+    A report is a view of the data: when one cannot be drawn the batch goes on and says why.
+    """
+
+    def __init__(self):
+        self.written: list[Path] = []
+
+    def __call__(self, result) -> None:
+        if result.directory is None or result.interrupted:
+            return
+        from magna_viz.report import write_report
+
+        try:
+            self.written.append(write_report(result.directory, overwrite=True).path)
+        except Exception as error:  # the simulation's data is safe; only its page is missing
+            print(f"magna run: simulation {result.id}: no report: {error}; try `magna report "
+                  f"{result.directory}`", file=sys.stderr, flush=True)
+
+    def finish(self, dataset_dir: Path) -> None:
+        from magna_viz.index import write_index
+
+        try:
+            index = write_index(dataset_dir)
+        except Exception as error:  # as above
+            print(f"magna run: no index page: {error}; try `magna report {dataset_dir}`", file=sys.stderr)
+            return
+        if self.written:
+            print(f"report:  {self.written[-1]} (the last simulation's)", flush=True)
+        print(f"index:   {index} (every simulation, linked to its report)", flush=True)
 
 
 def draw_pictures(config, folder: Path) -> list[Path]:
