@@ -214,12 +214,7 @@ def plot_trajectories_3d(recording: Recording, out_png: Path) -> Path:
     ax.set_ylabel("y (m)")
     ax.set_zlabel("z (m)")
     ax.tick_params(labelsize=7)
-    has_paths = any(u.raw_paths or u.smoothed_paths for u in uavs)
-    handles = _uav_legend(uavs) + _style_legend(has_paths, any(len(u.goals) for u in uavs),
-                                                len(recording.world.obstacles), len(recording.world.geometries))
-    fig.legend(handles=handles, loc="upper left", bbox_to_anchor=(0.73, 0.9), fontsize=8, frameon=False)
-    fig.suptitle(f"Trajectories: {recording.title}", x=0.02, y=0.97, ha="left", fontsize=10)
-    return _save(fig, out_png)
+    return _finish_trajectories(fig, recording, uavs, "Trajectories", legend_x=0.73, out_png=out_png)
 
 
 def _silhouette(faces: list[np.ndarray]) -> MplPath | None:
@@ -293,11 +288,16 @@ def plot_trajectories_top(recording: Recording, out_png: Path) -> Path:
     ax.set_ylabel("y (m)")
     ax.tick_params(labelsize=8)
     ax.grid(True, linewidth=0.3, alpha=0.5)
+    return _finish_trajectories(fig, recording, uavs, "Top view", legend_x=0.7, out_png=out_png)
+
+
+def _finish_trajectories(fig: Figure, recording: Recording, uavs, title: str, legend_x: float, out_png: Path) -> Path:
+    """The legend both trajectory figures share (UAVs, then the kinds of line and shape), the title, the file."""
     has_paths = any(u.raw_paths or u.smoothed_paths for u in uavs)
     handles = _uav_legend(uavs) + _style_legend(has_paths, any(len(u.goals) for u in uavs),
                                                 len(recording.world.obstacles), len(recording.world.geometries))
-    fig.legend(handles=handles, loc="upper left", bbox_to_anchor=(0.7, 0.9), fontsize=8, frameon=False)
-    fig.suptitle(f"Top view: {recording.title}", x=0.02, y=0.97, ha="left", fontsize=10)
+    fig.legend(handles=handles, loc="upper left", bbox_to_anchor=(legend_x, 0.9), fontsize=8, frameon=False)
+    fig.suptitle(f"{title}: {recording.title}", x=0.02, y=0.97, ha="left", fontsize=10)
     return _save(fig, out_png)
 
 
