@@ -1,6 +1,8 @@
 """The recorder: a fixed, documented column set; one row per control step; files written all or nothing."""
 import math
+import os
 import re
+import stat
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -304,6 +306,17 @@ def test_write_atomically_refuses_a_file_that_appears_while_writing(tmp_path):
     assert [p.name for p in tmp_path.iterdir()] == ["x.txt"]
     files.write_atomically(target, lambda out: out.write(b"bytes"), overwrite=True, binary=True)
     assert target.read_bytes() == b"bytes"
+
+
+def test_write_atomically_gives_the_mode_a_plain_open_would(tmp_path):
+    old = os.umask(0o027)
+    try:
+        made = files.write_atomically(tmp_path / "new.txt", lambda out: out.write("x"))
+        replaced = files.write_atomically(made, lambda out: out.write("y"), overwrite=True)
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE(made.stat().st_mode) == 0o640  # 0o666 less the umask, not mkstemp's 0o600
+    assert stat.S_IMODE(replaced.stat().st_mode) == 0o640
 
 
 def test_depth_frames_round_trip_by_row_index(tmp_path):

@@ -33,6 +33,7 @@ def write_atomically(path: str | os.PathLike, write_fn: Callable[[IO[Any]], None
             write_fn(out)
             out.flush()
             os.fsync(out.fileno())
+        os.chmod(tmp, 0o666 & ~_umask())  # as a plain open() would have made it, not mkstemp's 0600
         if overwrite:
             os.replace(tmp, path)
         else:
@@ -42,6 +43,12 @@ def write_atomically(path: str | os.PathLike, write_fn: Callable[[IO[Any]], None
         raise
     _fsync_dir(path.parent)
     return path
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
 
 
 def _publish_without_overwrite(tmp: Path, path: Path) -> None:

@@ -8,9 +8,10 @@ from __future__ import annotations
 import base64
 import html
 import os
-import tempfile
 from collections.abc import Iterable, Sequence
 from pathlib import Path
+
+from magna_uav.files import write_atomically
 
 STYLE = """
 body { font-family: Helvetica, Arial, sans-serif; margin: 1.5em auto; max-width: 1100px; color: #222; }
@@ -67,15 +68,4 @@ def page(title: str, body: str) -> str:
 
 def write_page(path: Path, text: str) -> Path:
     """Write `path` all or nothing: a reader sees the old page or the new one, never half of one."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as handle:
-            handle.write(text)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+    return write_atomically(path, lambda out: out.write(text), overwrite=True)

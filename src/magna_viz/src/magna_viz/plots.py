@@ -26,8 +26,6 @@ Figures use matplotlib's Agg canvas directly (no pyplot state, safe in any threa
 from __future__ import annotations
 
 import math
-import os
-import secrets
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -40,6 +38,7 @@ from matplotlib.path import Path as MplPath
 from mpl_toolkits.mplot3d import Axes3D  # noqa: F401  (registers the 3-D projection)
 from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
 
+from magna_uav.files import write_atomically
 from magna_viz.latency import DEFAULT_THRESHOLD, command_latencies, latency_samples
 from magna_viz.recorded_world import WorldShape
 from magna_viz.recording import Recording, UavRecord
@@ -75,17 +74,7 @@ def _figure(size: tuple[float, float] = FIGSIZE) -> Figure:
 
 
 def _save(fig: Figure, out_png: Path, dpi: int = DPI) -> Path:
-    out_png = Path(out_png)
-    out_png.parent.mkdir(parents=True, exist_ok=True)
-    temporary = out_png.parent / f".{out_png.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp"
-    try:
-        with open(temporary, "xb") as out:
-            fig.savefig(out, format="png", dpi=dpi)
-        os.replace(temporary, out_png)
-    finally:
-        if temporary.exists():
-            temporary.unlink()
-    return out_png
+    return write_atomically(out_png, lambda out: fig.savefig(out, format="png", dpi=dpi), overwrite=True, binary=True)
 
 
 def _uavs_with(recording: Recording, what: str) -> list[UavRecord]:

@@ -15,6 +15,7 @@ import math
 import os
 import re
 import select
+import shutil
 import signal
 import subprocess
 import sys
@@ -26,6 +27,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from magna_uav.files import write_atomically
 from magna_viz import rviz_config as rc
 
 BAG_NAME = "simulation.bag"
@@ -263,26 +265,6 @@ def make_plan(options: ReplayOptions, environ: dict | None = None) -> Plan:
 
 # --- running ----------------------------------------------------------------------------------------------------
 
-def write_atomically(path: Path, write: Callable[[Path], None]) -> Path:
-    """Call write(temporary path in the same folder), then rename it to `path`."""
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
-    os.close(fd)
-    try:
-        write(Path(tmp))
-        os.chmod(tmp, 0o666 & ~_umask())  # as a plain open() would have made it, not mkstemp's 0600
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
-
-
-def _umask() -> int:
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
-
-
 class _Progress:
     """Reads rosbag play's output: its `Duration: elapsed / total` line gives the bag time played."""
 
@@ -444,8 +426,7 @@ class Replay:
         return ImageGrab.grab(xdisplay=self.display).convert("RGB")
 
     def _save(self, image, path: Path) -> Path:
-        write_atomically(path, lambda tmp: image.save(tmp, format="PNG"))
-        return path
+        return write_atomically(path, lambda out: image.save(out, format="PNG"), overwrite=True, binary=True)
 
     def _headless(self, play, progress: _Progress, rviz, work: Path) -> None:
         options, bag = self.plan.options, self.plan.bag
@@ -531,8 +512,8 @@ def write_gif(images: list[Path], path: Path, fps: float) -> Path:
             frames.append(im.quantize(colors=255, method=Image.Quantize.MEDIANCUT))
     duration = max(int(round(1000.0 / fps)), 20)
     durations = [duration] * (len(frames) - 1) + [max(duration, 2000)]  # hold the final frame
-    return write_atomically(path, lambda tmp: frames[0].save(tmp, format="GIF", save_all=True,
-                                                             append_images=frames[1:], duration=durations, loop=0))
+    return write_atomically(path, lambda out: frames[0].save(out, format="GIF", save_all=True, append_images=frames[1:],
+                                                             duration=durations, loop=0), overwrite=True, binary=True)
 
 
 def write_mp4(images: list[Path], path: Path, fps: float) -> Path:
@@ -540,23 +521,33 @@ def write_mp4(images: list[Path], path: Path, fps: float) -> Path:
     hold = max(int(round(2 * fps)), 1)
     sequence = images[:-1] + [images[-1]] * hold
 
-    def encode(tmp: Path) -> None:
-        argv = ["ffmpeg", "-y", "-loglevel", "error", "-f", "image2pipe", "-framerate", f"{fps:g}",
-                "-c:v", "png", "-i", "-", "-c:v", "libx264", "-pix_fmt", "yuv420p",
-                "-vf", "pad=ceil(iw/2)*2:ceil(ih/2)*2", "-movflags", "+faststart", "-f", "mp4", str(tmp)]
-        with subprocess.Popen(argv, stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                              start_new_session=True) as ffmpeg:
-            try:
-                for image in sequence:
-                    ffmpeg.stdin.write(image.read_bytes())
-                ffmpeg.stdin.close()
-            except BrokenPipeError:
-                pass
-            error = ffmpeg.stderr.read().decode(errors="replace").strip()
-            if ffmpeg.wait() != 0:
-                raise ReplayFailure(f"ffmpeg could not write {path.name}: {error or 'exit ' + str(ffmpeg.returncode)}")
+    def encode(out) -> None:
+        # ffmpeg must seek back to move the index to the front (+faststart), so it writes a file of its own,
+        # beside the target, whose bytes then go into the atomic write.
+        with tempfile.TemporaryDirectory(prefix=".mp4.", dir=path.parent) as work:
+            encoded = Path(work) / path.name
+            _ffmpeg(sequence, encoded, fps)
+            with open(encoded, "rb") as source:
+                shutil.copyfileobj(source, out)
 
-    return write_atomically(path, encode)
+    return write_atomically(path, encode, overwrite=True, binary=True)
+
+
+def _ffmpeg(sequence: list[Path], target: Path, fps: float) -> None:
+    argv = ["ffmpeg", "-y", "-loglevel", "error", "-f", "image2pipe", "-framerate", f"{fps:g}",
+            "-c:v", "png", "-i", "-", "-c:v", "libx264", "-pix_fmt", "yuv420p",
+            "-vf", "pad=ceil(iw/2)*2:ceil(ih/2)*2", "-movflags", "+faststart", "-f", "mp4", str(target)]
+    with subprocess.Popen(argv, stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                          start_new_session=True) as ffmpeg:
+        try:
+            for image in sequence:
+                ffmpeg.stdin.write(image.read_bytes())
+            ffmpeg.stdin.close()
+        except BrokenPipeError:
+            pass
+        error = ffmpeg.stderr.read().decode(errors="replace").strip()
+        if ffmpeg.wait() != 0:
+            raise ReplayFailure(f"ffmpeg could not write {target.name}: {error or 'exit ' + str(ffmpeg.returncode)}")
 
 
 def _bar(total: float, enabled: bool):

@@ -8,14 +8,14 @@ just the 3-D view).
 from __future__ import annotations
 
 import math
-import os
 import re
-import tempfile
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import yaml
+
+from magna_uav.files import write_atomically
 
 RVIZ_DIR = Path(__file__).resolve().parents[2] / "rviz"
 DEFAULT_FAMILY = "gym"
@@ -327,20 +327,8 @@ def _round_step(value: float) -> float:
 
 def write_config(config: dict, path: Path) -> Path:
     """Write an rviz file atomically."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as out:
-            yaml.safe_dump(config, out, default_flow_style=False, sort_keys=False)
-        mask = os.umask(0o022)
-        os.umask(mask)
-        os.chmod(tmp, 0o666 & ~mask)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+    return write_atomically(path, lambda out: yaml.safe_dump(config, out, default_flow_style=False, sort_keys=False),
+                            overwrite=True)
 
 
 def view_of(config: dict) -> tuple[float, float]:
