@@ -536,9 +536,10 @@ def test_the_recorded_runs_distances_from_the_bag_agree_with_the_csvs(recorded_r
     for uav in recorded_run.uav_ids:
         bag, csv = recording.uavs[uav].proximity, from_csv.uavs[uav].proximity
         assert bag.source == "simulation.bag" and csv.source == f"uav_{uav}.csv"
-        # the managers' poses are at most a few simulator steps old: centimetres at 2 m/s
-        both = np.isfinite(csv.uav_distance)
-        assert np.median(np.abs(np.interp(csv.time, bag.time, bag.uav_distance) - csv.uav_distance)[both]) < 0.1
-        both = np.isfinite(csv.obstacle_distance)
-        assert np.median(np.abs(np.interp(csv.time, bag.time, bag.obstacle_distance)
-                                - csv.obstacle_distance)[both]) < 0.1
+        # the managers' poses are at most a few simulator steps old: centimetres at 2 m/s. The bag knows no
+        # distance before both UAVs' first poses are in it: on a loaded machine the first seconds may miss.
+        for field in ("uav_distance", "obstacle_distance"):
+            from_bag = np.interp(csv.time, bag.time, getattr(bag, field))
+            both = np.isfinite(getattr(csv, field)) & np.isfinite(from_bag)
+            assert both.mean() > 0.5, field
+            assert np.median(np.abs(from_bag - getattr(csv, field))[both]) < 0.1, field
