@@ -10,8 +10,9 @@ step, so the steps can be rebuilt where no CSV exists (a real flight's bag, a lo
   except rows whose message the bag missed (none, normally).
 - own and other UAVs' position and velocity: the newest `/uav_{id}/ual/pose` and
   `/uav_{id}/ual/velocity` stamped at or before the step (a zero stamp counts as the time the bag
-  got the message), NaN before the bag's first one (rosbag subscribes to a new topic within about
-  a wall second: the first take-off steps may come before). The CSV holds the pose the manager
+  got the message), NaN before the bag's first one (the ground station lets the bag connect to
+  them before any UAV moves; bags made before it did may miss the first take-off steps, as
+  rosbag finds a new topic only within about a wall second). The CSV holds the pose the manager
   had last heard instead: mostly the same message, else a neighbour in the simulator's 30 Hz
   stream (one period of flight, < 0.07 m at 2 m/s), and rarely, when the manager's subscriber
   stalled, one a few tenths of a second old (mlr/tests/test_recording.py measures it). Others'

@@ -11,9 +11,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import shutil
-import signal
 import subprocess
 import threading
 import time
@@ -43,10 +40,12 @@ from std_msgs.msg import ColorRGBA, String
 from std_srvs.srv import Trigger, TriggerResponse
 from uav_abstraction_layer.msg import State as UalState
 
+from magna_gs.bag_recorder import BagRecorder
 from magna_gs.commands import CommandPlan, CommandRefused, Param, UavStatus, plan_command
 from magna_gs.factory import ActionClients, RosStateFactory, wait_sim_seconds
 from magna_gs.mission.build import build_machine
 from magna_gs.mission.loader import MissionError, load_mission
+from magna_gs.processes import end_group
 from magna_gs.sim_pause import SimulationPause
 from magna_sm.introspection import IntrospectionServer
 from magna_uav.files import write_atomically
@@ -80,16 +79,17 @@ Private parameters (defaults):
 SUCCESS_OUTCOMES = ("completed", "succeeded", "success", "mission_completed", "finished")
 # The UAL pose and velocity and the managers' navigation steps let mlr rebuild every recorded
 # control step from the bag (mlr.bags), e.g. for flights whose CSVs are lost or never written.
+BAG_WAIT = 15.0  # wall seconds; rosbag finds new topics about once a second
 BAG_TOPICS = (r"/tf|/tf_static|/magna/world/markers|/uav_[0-9]+/ual/pose|/uav_[0-9]+/ual/velocity"
               r"|/magna/uav_[0-9]+/navigation|/magna/sm/mission/.*"
               r"|/magna/uav_[0-9]+/path/.*|/magna/uav_[0-9]+/goal|/magna/gs/critical_event")
 
 
 class GroundStationServices:
-    """What the mission's states act through: world node, simulator, UAV managers, pause."""
+    """What the mission's states act through: world node, simulator, UAV managers, pause, bag."""
 
     def __init__(self, mission, mission_file: Path, data_dir: Path | None, save_data: bool, control_rate: float,
-                 manager_output: str, button_timeout: float = 0.0):
+                 manager_output: str, button_timeout: float = 0.0, bag: BagRecorder | None = None):
         self.mission, self.mission_file = mission, mission_file
         self.data_dir, self.save_data = data_dir, save_data
         self.control_rate, self.manager_output = control_rate, manager_output
@@ -103,6 +103,7 @@ class GroundStationServices:
         self.managers: dict[int, subprocess.Popen] = {}
         self.configs = {c.id: c for c in mission.agents}
         self.sim_pause = SimulationPause()
+        self.bag = bag
 
     # --- helpers the states use ------------------------------------------------------------
     def action_client(self, uav_id: int, action: str):
@@ -220,7 +221,18 @@ class GroundStationServices:
             self._start_manager(config.id)
         for config in agents:  # each manager is ready when its action servers answer
             self.clients.get(config.id, "take_off")
+        self._wait_for_the_bag()
         return True
+
+    def _wait_for_the_bag(self) -> None:
+        """Let the bag connect to the new UAVs' topics while time stands still, so it misses no take-off."""
+        if self.bag is None:
+            return
+        topics = [f"/uav_{i}/ual/{name}" for i in self.spawned for name in ("pose", "velocity")]
+        missing = self.bag.wait_listening(topics, timeout=BAG_WAIT)
+        if missing:
+            rospy.logwarn(f"the bag is not recording {', '.join(missing)} after {BAG_WAIT:.0f} s; it will miss "
+                          f"their first messages")
 
     def _start_manager(self, uav_id: int) -> None:
         command = ["rosrun", "magna_uav", "uav_manager", f"__name:=uav_{uav_id}_manager", f"_id:={uav_id}",
@@ -294,21 +306,6 @@ class GroundStationServices:
         self.spawned.clear()
 
 
-def end_group(process: subprocess.Popen, grace: float = 5.0) -> None:
-    """End a process we started and everything in its process group: SIGINT, then SIGTERM, then SIGKILL."""
-    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
-        if process.poll() is not None:
-            return
-        try:
-            os.killpg(process.pid, sig)
-        except ProcessLookupError:
-            return
-        try:
-            process.wait(grace)
-        except subprocess.TimeoutExpired:
-            continue
-
-
 class GroundStation:
     def __init__(self):
         self.hyper = rospy.get_param("/magna/hyperparameters", {}) or {}
@@ -325,17 +322,18 @@ class GroundStation:
         if self.data_dir:
             self.data_dir.mkdir(parents=True, exist_ok=True)
         self.save_data = bool(rospy.get_param("~save_data", self.hyper.get("save_data", True)))
+        record = self.data_dir and rospy.get_param("~bag", self.hyper.get("save_bag", True))
+        self.bag = BagRecorder(self.data_dir / "simulation.bag", BAG_TOPICS) if record else None
         self.services = GroundStationServices(self.mission, self.mission_file, self.data_dir, self.save_data,
                                               float(rospy.get_param("~control_rate", 10.0)),
                                               rospy.get_param("~manager_output", "log"),
-                                              float(rospy.get_param("~button_timeout", 0.0)))
+                                              float(rospy.get_param("~button_timeout", 0.0)), self.bag)
         self.machine = build_machine(self.mission, RosStateFactory(self.services))
         self.introspection = IntrospectionServer("mission", self.machine)
         self.statuses: dict[int, dict] = {c.id: {} for c in self.mission.agents}
         self.critical_events: list[tuple[int, str]] = []
         self.lock = threading.Lock()
         self.critical = rospy.Publisher("/magna/gs/critical_event", String, queue_size=1, latch=True)
-        self.bag = self._start_bag() if rospy.get_param("~bag", self.hyper.get("save_bag", True)) else None
         for config in self.mission.agents:
             rospy.Subscriber(f"/uav_{config.id}/ual/pose", PoseStamped, self._on_pose, config.id, queue_size=1)
             rospy.Subscriber(f"/uav_{config.id}/ual/state", UalState, self._on_ual_state, config.id, queue_size=1)
@@ -422,13 +420,6 @@ class GroundStation:
         return TriggerResponse(True, "continuing")
 
     # --- life --------------------------------------------------------------------------------
-    def _start_bag(self) -> subprocess.Popen | None:
-        if not self.data_dir:
-            return None
-        path = self.data_dir / "simulation.bag"
-        return subprocess.Popen(["rosbag", "record", "-q", "-O", str(path), "--regex", BAG_TOPICS],
-                                start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-
     def run(self) -> int:
         self.introspection.start()
         start, wall_start = rospy.get_time(), time.monotonic()
@@ -478,12 +469,8 @@ class GroundStation:
         self.introspection.stop()
 
     def _close_bag(self) -> None:
-        if self.bag is None:
-            return
-        end_group(self.bag, grace=10.0)
-        active = self.data_dir / "simulation.bag.active"
-        if active.exists():
-            shutil.move(active, self.data_dir / "simulation.bag")
+        if self.bag is not None:
+            self.bag.close(grace=10.0)
 
     def _report(self, success, outcome, message, duration, collisions, wall) -> None:
         name = "/magna/master/simulation_termination"

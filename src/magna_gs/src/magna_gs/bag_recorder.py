@@ -1,0 +1,81 @@
+"""simulation.bag: `rosbag record` in a process group of its own, and a way to know it is listening.
+
+`rosbag record --regex` looks for new topics by asking the master about once a wall second, so
+a topic that appears mid-mission (each UAV's pose and velocity appear when it is spawned) is
+missed until then. The ground station asks `wait_listening` while simulated time stands still
+after spawning, so the bag holds every pose from the take-off on. Listening means an inbound
+connection in the recorder's own bus info (the node's `getBusInfo`), not only a subscription
+the master knows of: messages sent before the connection is made are lost.
+"""
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import time
+import xmlrpc.client
+from collections.abc import Iterable
+from pathlib import Path
+
+import rosgraph
+import rosgraph.names
+
+from magna_gs.processes import end_group
+
+WATCHER = "/magna_bag_watcher"  # the caller id of our master and node queries
+
+
+class _Transport(xmlrpc.client.Transport):
+    """An XML-RPC transport that gives up on a node that does not answer."""
+
+    def __init__(self, timeout: float):
+        super().__init__()
+        self.timeout = timeout
+
+    def make_connection(self, host):
+        connection = super().make_connection(host)
+        connection.timeout = self.timeout
+        return connection
+
+
+class BagRecorder:
+    def __init__(self, path: Path, topics_regex: str, node_name: str | None = None):
+        """Start recording the topics matching `topics_regex` into `path` (written as `path`.active until closed).
+
+        The node is named so we can ask it what it listens to; the default name is unique per ground
+        station process, since a second node of the same name would make the master shut the first down.
+        """
+        self.path = Path(path)
+        node_name = node_name or f"magna_bag_{os.getpid()}"
+        self.node = rosgraph.names.ns_join(rosgraph.names.get_ros_namespace(), node_name)
+        self.process = subprocess.Popen(
+            ["rosbag", "record", "-q", "-O", str(self.path), "--regex", topics_regex, f"__name:={node_name}"],
+            start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+
+    def listening_to(self) -> set[str]:
+        """The topics the recorder has a publisher connection on now (empty while it is not up)."""
+        try:
+            uri = rosgraph.Master(WATCHER).lookupNode(self.node)
+            code, _, links = xmlrpc.client.ServerProxy(uri, transport=_Transport(2.0)).getBusInfo(WATCHER)
+        except (rosgraph.MasterException, OSError, xmlrpc.client.Error):
+            return set()
+        # a row: connection id, the other end, direction ("i": inbound), transport, topic[, connected]
+        return {row[4] for row in links if row[2] == "i" and (len(row) < 6 or row[5])} if code == 1 else set()
+
+    def wait_listening(self, topics: Iterable[str], timeout: float, poll: float = 0.05) -> list[str]:
+        """Wait (wall time) until the recorder is connected to each topic; return those it still is not."""
+        wanted = list(topics)
+        deadline = time.monotonic() + timeout
+        while True:
+            listening = self.listening_to() if wanted else set()
+            missing = [t for t in wanted if t not in listening]
+            if not missing or self.process.poll() is not None or time.monotonic() >= deadline:
+                return missing
+            time.sleep(poll)
+
+    def close(self, grace: float = 10.0) -> None:
+        """Stop recording: rosbag closes the file on SIGINT, which renames it from .active."""
+        end_group(self.process, grace=grace)
+        active = self.path.with_name(self.path.name + ".active")
+        if active.exists():  # killed before it could close: keep what was written
+            shutil.move(active, self.path)
