@@ -1,5 +1,6 @@
 """BagRecorder: the ground station's rosbag record, and knowing when it listens (a real master and rosbag)."""
 import os
+import signal
 import threading
 import time
 
@@ -76,12 +77,28 @@ def test_a_topic_nobody_publishes_is_reported_missing_after_the_timeout(rospy_no
 
 def test_a_recorder_that_died_is_not_waited_for(rospy_node, tmp_path):
     recorder = BagRecorder(tmp_path / "simulation.bag", "([", node_name=f"bag_bad_{os.getpid()}")  # a bad regex
-    try:
-        start = time.monotonic()
-        assert recorder.wait_listening(["/uav_1/ual/pose"], timeout=60.0) == ["/uav_1/ual/pose"]
-        assert time.monotonic() - start < 30.0 and recorder.process.poll() is not None
-    finally:
+    start = time.monotonic()
+    missing = recorder.wait_listening(["/uav_1/ual/pose"], timeout=60.0)
+    waited = time.monotonic() - start
+    with pytest.raises(RuntimeError, match=r"ended by itself \(exit code -?[1-9]"):  # its empty .active stays
         recorder.close()
+    assert missing == ["/uav_1/ual/pose"] and waited < 30.0
+
+
+def test_a_killed_recorders_file_is_kept_and_the_error_says_how_to_mend_it(rospy_node, tmp_path):
+    topic = f"/uav_{os.getpid() % 1000 + 1}/ual/pose"
+    publisher = CountingPublisher(rospy_node, topic)
+    recorder = BagRecorder(tmp_path / "simulation.bag", r"/uav_[0-9]+/ual/pose", node_name=f"bag_kill_{os.getpid()}")
+    try:
+        assert recorder.wait_listening([topic], timeout=30.0) == []
+        time.sleep(0.5)
+        os.killpg(recorder.process.pid, signal.SIGKILL)  # as if the machine had to kill it
+        recorder.process.wait(10.0)
+    finally:
+        publisher.close()
+    with pytest.raises(RuntimeError, match="rosbag reindex .*simulation.bag.active"):
+        recorder.close()
+    assert (tmp_path / "simulation.bag.active").stat().st_size > 0 and not (tmp_path / "simulation.bag").exists()
 
 
 if __name__ == "__main__":

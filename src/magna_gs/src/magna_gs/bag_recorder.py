@@ -6,11 +6,14 @@ missed until then. The ground station asks `wait_listening` while simulated time
 after spawning, so the bag holds every pose from the take-off on. Listening means an inbound
 connection in the recorder's own bus info (the node's `getBusInfo`), not only a subscription
 the master knows of: messages sent before the connection is made are lost.
+
+The recorder is rosbag's `record` executable itself, not the `rosbag record` script: the script
+runs it as a child and exits on SIGINT without waiting for it, so whoever stops the script
+cannot know when the bag is written and may take a file that has no index yet.
 """
 from __future__ import annotations
 
 import os
-import shutil
 import subprocess
 import time
 import xmlrpc.client
@@ -19,6 +22,7 @@ from pathlib import Path
 
 import rosgraph
 import rosgraph.names
+import roslib.packages
 
 from magna_gs.processes import end_group
 
@@ -48,8 +52,11 @@ class BagRecorder:
         self.path = Path(path)
         node_name = node_name or f"magna_bag_{os.getpid()}"
         self.node = rosgraph.names.ns_join(rosgraph.names.get_ros_namespace(), node_name)
+        found = roslib.packages.find_node("rosbag", "record")
+        if not found:
+            raise RuntimeError("rosbag's record executable was not found; install it: apt-get install rosbag")
         self.process = subprocess.Popen(
-            ["rosbag", "record", "-q", "-O", str(self.path), "--regex", topics_regex, f"__name:={node_name}"],
+            [found[0], "--quiet", "-O", str(self.path), "--regex", topics_regex, f"__name:={node_name}"],
             start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
 
     def listening_to(self) -> set[str]:
@@ -74,8 +81,16 @@ class BagRecorder:
             time.sleep(poll)
 
     def close(self, grace: float = 10.0) -> None:
-        """Stop recording: rosbag closes the file on SIGINT, which renames it from .active."""
+        """Stop recording: on SIGINT rosbag writes the index and renames the file from .active.
+
+        A recorder that died or had to be killed leaves `path`.active without an index; it is kept
+        under that name (readers would refuse it as `path`) and the error says how to mend it.
+        """
+        early_exit = self.process.poll()
         end_group(self.process, grace=grace)
         active = self.path.with_name(self.path.name + ".active")
-        if active.exists():  # killed before it could close: keep what was written
-            shutil.move(active, self.path)
+        if active.exists():
+            why = (f"rosbag record ended by itself (exit code {early_exit})" if early_exit is not None
+                   else f"rosbag did not close it within {grace:.0f} s")
+            raise RuntimeError(f"{active} has no index: {why}. To read what it holds: `rosbag reindex {active}`, "
+                               f"then rename it to {self.path.name}")
