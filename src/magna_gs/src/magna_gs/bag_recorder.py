@@ -24,22 +24,9 @@ import rosgraph
 import rosgraph.names
 import roslib.packages
 
-from magna_gs.processes import end_group
+from magna_gs.processes import TimeoutTransport, end_process_group
 
 WATCHER = "/magna_bag_watcher"  # the caller id of our master and node queries
-
-
-class _Transport(xmlrpc.client.Transport):
-    """An XML-RPC transport that gives up on a node that does not answer."""
-
-    def __init__(self, timeout: float):
-        super().__init__()
-        self.timeout = timeout
-
-    def make_connection(self, host):
-        connection = super().make_connection(host)
-        connection.timeout = self.timeout
-        return connection
 
 
 class BagRecorder:
@@ -63,7 +50,7 @@ class BagRecorder:
         """The topics the recorder has a publisher connection on now (empty while it is not up)."""
         try:
             uri = rosgraph.Master(WATCHER).lookupNode(self.node)
-            code, _, links = xmlrpc.client.ServerProxy(uri, transport=_Transport(2.0)).getBusInfo(WATCHER)
+            code, _, links = xmlrpc.client.ServerProxy(uri, transport=TimeoutTransport(2.0)).getBusInfo(WATCHER)
         except (rosgraph.MasterException, OSError, xmlrpc.client.Error):
             return set()
         # a row: connection id, the other end, direction ("i": inbound), transport, topic[, connected]
@@ -87,7 +74,7 @@ class BagRecorder:
         under that name (readers would refuse it as `path`) and the error says how to mend it.
         """
         early_exit = self.process.poll()
-        end_group(self.process, grace=grace)
+        end_process_group(self.process, grace=grace)
         active = self.path.with_name(self.path.name + ".active")
         if active.exists():
             why = (f"rosbag record ended by itself (exit code {early_exit})" if early_exit is not None

@@ -45,7 +45,7 @@ from magna_gs.commands import CommandPlan, CommandRefused, Param, UavStatus, pla
 from magna_gs.factory import ActionClients, RosStateFactory, wait_sim_seconds
 from magna_gs.mission.build import build_machine
 from magna_gs.mission.loader import MissionError, load_mission
-from magna_gs.processes import end_group
+from magna_gs.processes import end_process_group
 from magna_gs.sim_pause import SimulationPause
 from magna_sm.introspection import IntrospectionServer
 from magna_uav.files import write_atomically
@@ -288,7 +288,7 @@ class GroundStationServices:
             try:
                 process.wait(max(0.1, deadline - time.monotonic()))
             except subprocess.TimeoutExpired:
-                end_group(process)
+                end_process_group(process)
         self.managers.clear()
         self.clients.stop()
 

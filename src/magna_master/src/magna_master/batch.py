@@ -39,8 +39,9 @@ from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from magna_gs.processes import end_process_group
 from magna_master import storage
-from magna_master.ros_master import RosMaster, RosMasterError, end_process_group
+from magna_master.ros_master import RosMaster, RosMasterError
 from magna_master.supervisor import (
     CRASHED,
     GROUND_STATION,

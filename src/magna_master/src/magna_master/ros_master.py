@@ -9,7 +9,6 @@ process group, and nothing else.
 from __future__ import annotations
 
 import os
-import signal
 import socket
 import subprocess
 import tempfile
@@ -18,6 +17,8 @@ import uuid
 import xmlrpc.client
 from collections.abc import Sequence
 from pathlib import Path
+
+from magna_gs.processes import TimeoutTransport, end_process_group
 
 
 class RosMasterError(RuntimeError):
@@ -33,48 +34,12 @@ def free_port(host: str = "127.0.0.1") -> int:
 
 def _master_pid(uri: str, timeout: float) -> int | None:
     """The pid of the master answering at `uri`, or None when nothing answers."""
-    transport = _TimeoutTransport(timeout)
+    transport = TimeoutTransport(timeout)
     try:
         code, _msg, pid = xmlrpc.client.ServerProxy(uri, transport=transport).getPid("/magna_probe")
     except (OSError, xmlrpc.client.Error):
         return None
     return pid if code == 1 else None
-
-
-class _TimeoutTransport(xmlrpc.client.Transport):
-    def __init__(self, timeout: float):
-        super().__init__()
-        self._timeout = timeout
-
-    def make_connection(self, host):
-        connection = super().make_connection(host)
-        connection.timeout = self._timeout
-        return connection
-
-
-def end_process_group(process: subprocess.Popen, grace: float = 5.0) -> None:
-    """Stop a process started in its own session, and every child it made.
-
-    SIGINT first (ROS nodes shut down cleanly on it), then SIGTERM, then SIGKILL.
-    """
-    if process.poll() is None:
-        for sig, wait in ((signal.SIGINT, grace), (signal.SIGTERM, grace), (signal.SIGKILL, grace)):
-            try:
-                os.killpg(process.pid, sig)
-            except ProcessLookupError:
-                break
-            try:
-                process.wait(timeout=wait)
-                break
-            except subprocess.TimeoutExpired:
-                continue
-    # The leader may be gone while children it left behind in the group live on.
-    try:
-        os.killpg(process.pid, signal.SIGKILL)
-    except (ProcessLookupError, PermissionError):
-        pass
-    if process.poll() is None:
-        process.wait(timeout=grace)
 
 
 class RosMaster:

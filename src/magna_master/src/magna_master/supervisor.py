@@ -37,7 +37,7 @@ from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from magna_master.ros_master import end_process_group
+from magna_gs.processes import end_process_group
 from magna_master.storage import RESULT_FILE, atomic_write_text
 
 TOKEN_ENV = "MAGNA_SIM_TOKEN"
