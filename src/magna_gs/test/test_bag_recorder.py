@@ -1,4 +1,5 @@
 """BagRecorder: the ground station's rosbag record, and knowing when it listens (a real master and rosbag)."""
+import itertools
 import os
 import signal
 import threading
@@ -9,6 +10,8 @@ import pytest
 from magna_gs.bag_recorder import BagRecorder
 
 RATE = 50.0  # Hz of the test publisher
+POSES = r"/uav_[0-9]+/ual/pose"
+_serial = itertools.count(1)  # topics and node names of their own per test
 
 
 class CountingPublisher:
@@ -17,7 +20,7 @@ class CountingPublisher:
     def __init__(self, rospy, topic):
         from geometry_msgs.msg import PoseStamped
 
-        self.rospy, self.sent, self.stop = rospy, 0, threading.Event()
+        self.rospy, self.topic, self.sent, self.stop = rospy, topic, 0, threading.Event()
         self.publisher = rospy.Publisher(topic, PoseStamped, queue_size=100)
         self.message = PoseStamped()
         self.thread = threading.Thread(target=self._run, daemon=True)
@@ -35,6 +38,17 @@ class CountingPublisher:
         self.publisher.unregister()
 
 
+@pytest.fixture
+def pose_stream(rospy_node):
+    publisher = CountingPublisher(rospy_node, f"/uav_{900 + next(_serial)}/ual/pose")
+    yield publisher
+    publisher.close()
+
+
+def start_recorder(tmp_path, regex=POSES):
+    return BagRecorder(tmp_path / "simulation.bag", regex, node_name=f"bag_{os.getpid()}_{next(_serial)}")
+
+
 def recorded_counts(path):
     import rosbag
 
@@ -42,17 +56,14 @@ def recorded_counts(path):
         return [msg.header.stamp.secs for _, msg, _ in bag.read_messages()]
 
 
-def test_once_it_says_listening_the_bag_gets_the_next_messages(rospy_node, tmp_path):
-    topic = f"/uav_{os.getpid() % 1000}/ual/pose"
-    publisher = CountingPublisher(rospy_node, topic)
-    recorder = BagRecorder(tmp_path / "simulation.bag", r"/uav_[0-9]+/ual/pose", node_name=f"bag_{os.getpid()}")
+def test_once_it_says_listening_the_bag_gets_the_next_messages(pose_stream, tmp_path):
+    recorder = start_recorder(tmp_path)
     try:
-        assert recorder.wait_listening([topic], timeout=30.0) == []
-        sent_when_listening = publisher.sent
-        assert topic in recorder.listening_to()
+        assert recorder.wait_listening([pose_stream.topic], timeout=30.0) == []
+        sent_when_listening = pose_stream.sent
+        assert pose_stream.topic in recorder.listening_to()
         time.sleep(0.5)
     finally:
-        publisher.close()
         recorder.close()
     assert recorder.process.poll() is not None
     assert (tmp_path / "simulation.bag").is_file() and not (tmp_path / "simulation.bag.active").exists()
@@ -64,7 +75,7 @@ def test_once_it_says_listening_the_bag_gets_the_next_messages(rospy_node, tmp_p
 
 
 def test_a_topic_nobody_publishes_is_reported_missing_after_the_timeout(rospy_node, tmp_path):
-    recorder = BagRecorder(tmp_path / "simulation.bag", r"/nobody/.*", node_name=f"bag_idle_{os.getpid()}")
+    recorder = start_recorder(tmp_path, r"/nobody/.*")
     try:
         start = time.monotonic()
         assert recorder.wait_listening(["/nobody/pose"], timeout=1.0) == ["/nobody/pose"]
@@ -76,7 +87,7 @@ def test_a_topic_nobody_publishes_is_reported_missing_after_the_timeout(rospy_no
 
 
 def test_a_recorder_that_died_is_not_waited_for(rospy_node, tmp_path):
-    recorder = BagRecorder(tmp_path / "simulation.bag", "([", node_name=f"bag_bad_{os.getpid()}")  # a bad regex
+    recorder = start_recorder(tmp_path, "([")  # a bad regex
     start = time.monotonic()
     missing = recorder.wait_listening(["/uav_1/ual/pose"], timeout=60.0)
     waited = time.monotonic() - start
@@ -85,17 +96,13 @@ def test_a_recorder_that_died_is_not_waited_for(rospy_node, tmp_path):
     assert missing == ["/uav_1/ual/pose"] and waited < 30.0
 
 
-def test_a_killed_recorders_file_is_kept_and_the_error_says_how_to_mend_it(rospy_node, tmp_path):
-    topic = f"/uav_{os.getpid() % 1000 + 1}/ual/pose"
-    publisher = CountingPublisher(rospy_node, topic)
-    recorder = BagRecorder(tmp_path / "simulation.bag", r"/uav_[0-9]+/ual/pose", node_name=f"bag_kill_{os.getpid()}")
-    try:
-        assert recorder.wait_listening([topic], timeout=30.0) == []
-        time.sleep(0.5)
-        os.killpg(recorder.process.pid, signal.SIGKILL)  # as if the machine had to kill it
-        recorder.process.wait(10.0)
-    finally:
-        publisher.close()
+def test_a_killed_recorders_file_is_kept_and_the_error_says_how_to_mend_it(pose_stream, tmp_path):
+    recorder = start_recorder(tmp_path)
+    listening = recorder.wait_listening([pose_stream.topic], timeout=30.0)
+    time.sleep(0.5)
+    os.killpg(recorder.process.pid, signal.SIGKILL)  # as if the machine had to kill it
+    recorder.process.wait(10.0)
+    assert listening == []
     with pytest.raises(RuntimeError, match="rosbag reindex .*simulation.bag.active"):
         recorder.close()
     assert (tmp_path / "simulation.bag.active").stat().st_size > 0 and not (tmp_path / "simulation.bag").exists()
