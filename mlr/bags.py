@@ -1,6 +1,6 @@
 """Simulation bag -> the steps of every UAV (`mlr.steps.UavSteps`), as the recorder CSVs hold them.
 
-The ground station bags (magna_gs `BAG_TOPICS`) what a UAV manager saw and did at each control
+The ground station bags (magna_gs `bag_recorder.mission_topics`) what a UAV manager saw and did at each control
 step, so the steps can be rebuilt where no CSV exists (a real flight's bag, a lost file):
 
 - `/magna/uav_{id}/navigation` (magna_msgs/NavigationStep): one message per recorded step, with

@@ -2,15 +2,16 @@
 import itertools
 import os
 import signal
+import sys
 import threading
 import time
 
 import pytest
 
-from magna_gs.bag_recorder import BagRecorder
+from magna_gs.bag_recorder import BagRecorder, mission_topics
+from magna_gs.processes import end_process_group
 
 RATE = 50.0  # Hz of the test publisher
-POSES = r"/uav_[0-9]+/ual/pose"
 _serial = itertools.count(1)  # topics and node names of their own per test
 
 
@@ -45,8 +46,8 @@ def pose_stream(rospy_node):
     publisher.close()
 
 
-def start_recorder(tmp_path, regex=POSES):
-    return BagRecorder(tmp_path / "simulation.bag", regex, node_name=f"bag_{os.getpid()}_{next(_serial)}")
+def start_recorder(tmp_path, topics):
+    return BagRecorder(tmp_path / "simulation.bag", topics, node_name=f"bag_{os.getpid()}_{next(_serial)}")
 
 
 def recorded_counts(path):
@@ -57,7 +58,7 @@ def recorded_counts(path):
 
 
 def test_once_it_says_listening_the_bag_gets_the_next_messages(pose_stream, tmp_path):
-    recorder = start_recorder(tmp_path)
+    recorder = start_recorder(tmp_path, [pose_stream.topic])
     try:
         assert recorder.wait_listening([pose_stream.topic], timeout=30.0) == []
         sent_when_listening = pose_stream.sent
@@ -68,14 +69,63 @@ def test_once_it_says_listening_the_bag_gets_the_next_messages(pose_stream, tmp_
     assert recorder.process.poll() is not None
     assert (tmp_path / "simulation.bag").is_file() and not (tmp_path / "simulation.bag.active").exists()
     counts = recorded_counts(tmp_path / "simulation.bag")
-    # rosbag looks for new topics once a wall second: without the wait, the first ~50 messages would be lost.
-    # A few may still pass while the publisher's side of the connection is being set up.
+    # A few messages may pass while the publisher's side of the connection is being set up.
     assert counts and counts[0] <= sent_when_listening + 5, (counts[:3], sent_when_listening)
     assert counts == list(range(counts[0], counts[0] + len(counts)))  # none lost once connected
 
 
+# Publishes poses on argv[1]; once the file argv[2] exists, it also makes simulated time run.
+POSE_SOURCE = """
+import os, sys, time
+import rospy
+from geometry_msgs.msg import PoseStamped
+from rosgraph_msgs.msg import Clock
+rospy.init_node("pose_source", disable_signals=True)
+poses = rospy.Publisher(sys.argv[1], PoseStamped, queue_size=10)
+clock = rospy.Publisher("/clock", Clock, queue_size=10)
+n = 0
+while True:
+    n += 1
+    poses.publish(PoseStamped())
+    if os.path.exists(sys.argv[2]):
+        clock.publish(Clock(rospy.Time(n)))
+    time.sleep(0.02)
+"""
+
+
+def test_a_topic_that_appears_while_simulated_time_stands_still_is_connected(fresh_ros_master, tmp_path,
+                                                                               monkeypatch):
+    # As after spawning: /use_sim_time and no clock, then a UAV's pose topic appears. A --regex recorder
+    # looks for new topics on a timer of simulated time and would never find it.
+    import rosgraph
+
+    for name, value in fresh_ros_master.env().items():
+        monkeypatch.setenv(name, value)
+    rosgraph.Master("/magna_test").setParam("/use_sim_time", True)
+    topic = "/uav_3/ual/pose"
+    recorder = start_recorder(tmp_path, mission_topics([3]))
+    source = None
+    try:
+        deadline = time.monotonic() + 30.0
+        while topic not in {t for t, nodes in rosgraph.Master("/magna_test").getSystemState()[1] if recorder.node
+                            in nodes}:  # the recorder has subscribed, and nobody publishes yet
+            assert time.monotonic() < deadline and recorder.process.poll() is None
+            time.sleep(0.05)
+        assert recorder.listening_to() == set()
+        time_runs = tmp_path / "time_runs"
+        source = fresh_ros_master.spawn([sys.executable, "-c", POSE_SOURCE, topic, str(time_runs)])
+        assert recorder.wait_listening([topic], timeout=20.0) == []
+        time_runs.touch()  # rosbag writes nothing before simulated time is valid
+        time.sleep(1.0)
+    finally:
+        if source is not None:
+            end_process_group(source)
+        recorder.close()
+    assert recorded_counts(tmp_path / "simulation.bag")
+
+
 def test_a_topic_nobody_publishes_is_reported_missing_after_the_timeout(rospy_node, tmp_path):
-    recorder = start_recorder(tmp_path, r"/nobody/.*")
+    recorder = start_recorder(tmp_path, ["/nobody/pose"])
     try:
         start = time.monotonic()
         assert recorder.wait_listening(["/nobody/pose"], timeout=1.0) == ["/nobody/pose"]
@@ -87,17 +137,17 @@ def test_a_topic_nobody_publishes_is_reported_missing_after_the_timeout(rospy_no
 
 
 def test_a_recorder_that_died_is_not_waited_for(rospy_node, tmp_path):
-    recorder = start_recorder(tmp_path, "([")  # a bad regex
+    recorder = start_recorder(tmp_path, ["/uav_1/ual/pose", "not a topic name"])
     start = time.monotonic()
     missing = recorder.wait_listening(["/uav_1/ual/pose"], timeout=60.0)
     waited = time.monotonic() - start
-    with pytest.raises(RuntimeError, match=r"ended by itself \(exit code -?[1-9]"):  # its empty .active stays
+    with pytest.raises(RuntimeError, match=r"no simulation.bag was written: .*ended by itself \(exit code -?[1-9]"):
         recorder.close()
     assert missing == ["/uav_1/ual/pose"] and waited < 30.0
 
 
 def test_a_killed_recorders_file_is_kept_and_the_error_says_how_to_mend_it(pose_stream, tmp_path):
-    recorder = start_recorder(tmp_path)
+    recorder = start_recorder(tmp_path, [pose_stream.topic])
     listening = recorder.wait_listening([pose_stream.topic], timeout=30.0)
     time.sleep(0.5)
     os.killpg(recorder.process.pid, signal.SIGKILL)  # as if the machine had to kill it
@@ -106,6 +156,21 @@ def test_a_killed_recorders_file_is_kept_and_the_error_says_how_to_mend_it(pose_
     with pytest.raises(RuntimeError, match="rosbag reindex .*simulation.bag.active"):
         recorder.close()
     assert (tmp_path / "simulation.bag.active").stat().st_size > 0 and not (tmp_path / "simulation.bag").exists()
+
+
+def test_the_recorded_missions_bag_heard_each_uav_before_its_first_step(recorded_run):
+    import rosbag
+
+    logs = list((recorded_run.sim_dir / "logs").rglob("ground_station-*.log"))
+    assert logs and not any("the bag is not recording" in log.read_text() for log in logs)
+    first = {}
+    with rosbag.Bag(str(recorded_run.sim_dir / "simulation.bag")) as bag:
+        for uav in recorded_run.uav_ids:
+            for topic in (f"/uav_{uav}/ual/pose", f"/uav_{uav}/ual/velocity", f"/magna/uav_{uav}/navigation"):
+                first[topic] = next(bag.read_messages(topics=[topic]))[1].header.stamp.to_sec()
+    for uav in recorded_run.uav_ids:
+        assert first[f"/uav_{uav}/ual/pose"] <= first[f"/magna/uav_{uav}/navigation"]
+        assert first[f"/uav_{uav}/ual/velocity"] <= first[f"/magna/uav_{uav}/navigation"]
 
 
 if __name__ == "__main__":

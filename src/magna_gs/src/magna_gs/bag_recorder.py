@@ -1,9 +1,11 @@
 """simulation.bag: `rosbag record` in a process group of its own, and a way to know it is listening.
 
-`rosbag record --regex` looks for new topics by asking the master about once a wall second, so
-a topic that appears mid-mission (each UAV's pose and velocity appear when it is spawned) is
-missed until then. The ground station asks `wait_listening` while simulated time stands still
-after spawning, so the bag holds every pose from the take-off on. Listening means an inbound
+The recorder is given every topic by name (`mission_topics`), known from the mission's UAV ids,
+not a `--regex`: with a regex, rosbag looks for new topics on a timer of simulated time, so
+while time stands still it finds none, and after that it misses up to a simulated second of
+each UAV. A named topic is subscribed at start, and the master tells the recorder the moment
+a publisher appears. The ground station asks `wait_listening` while time stands still after
+spawning, so the bag holds every pose from the take-off on. Listening means an inbound
 connection in the recorder's own bus info (the node's `getBusInfo`), not only a subscription
 the master knows of: messages sent before the connection is made are lost.
 
@@ -27,11 +29,22 @@ import roslib.packages
 from magna_gs.processes import TimeoutTransport, end_process_group
 
 WATCHER = "/magna_bag_watcher"  # the caller id of our master and node queries
+# The UAL pose and velocity and the managers' navigation steps let mlr rebuild every recorded
+# control step from the bag (mlr.bags), e.g. for flights whose CSVs are lost or never written.
+WORLD_TOPICS = ("/tf", "/tf_static", "/magna/world/markers", "/magna/sm/mission/structure",
+                "/magna/sm/mission/status", "/magna/gs/critical_event")
+UAV_TOPICS = ("/uav_{id}/ual/pose", "/uav_{id}/ual/velocity", "/magna/uav_{id}/navigation",
+              "/magna/uav_{id}/path/raw", "/magna/uav_{id}/path/smoothed", "/magna/uav_{id}/goal")
+
+
+def mission_topics(uav_ids: Iterable[int]) -> list[str]:
+    """What simulation.bag holds for a mission of these UAVs."""
+    return [*WORLD_TOPICS, *(topic.format(id=i) for i in uav_ids for topic in UAV_TOPICS)]
 
 
 class BagRecorder:
-    def __init__(self, path: Path, topics_regex: str, node_name: str | None = None):
-        """Start recording the topics matching `topics_regex` into `path` (written as `path`.active until closed).
+    def __init__(self, path: Path, topics: Iterable[str], node_name: str | None = None):
+        """Start recording `topics` into `path` (written as `path`.active until closed).
 
         The node is named so we can ask it what it listens to; the default name is unique per ground
         station process, since a second node of the same name would make the master shut the first down.
@@ -43,7 +56,7 @@ class BagRecorder:
         if not found:
             raise RuntimeError("rosbag's record executable was not found; install it: apt-get install rosbag")
         self.process = subprocess.Popen(
-            [found[0], "--quiet", "-O", str(self.path), "--regex", topics_regex, f"__name:={node_name}"],
+            [found[0], "--quiet", "-O", str(self.path), *topics, f"__name:={node_name}"],
             start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
 
     def listening_to(self) -> set[str]:
@@ -70,14 +83,16 @@ class BagRecorder:
     def close(self, grace: float = 10.0) -> None:
         """Stop recording: on SIGINT rosbag writes the index and renames the file from .active.
 
-        A recorder that died or had to be killed leaves `path`.active without an index; it is kept
-        under that name (readers would refuse it as `path`) and the error says how to mend it.
+        A recorder that died or had to be killed leaves `path`.active without an index, or nothing;
+        the file is kept under that name (readers would refuse it as `path`) and the error says so.
         """
         early_exit = self.process.poll()
         end_process_group(self.process, grace=grace)
+        why = (f"rosbag record ended by itself (exit code {early_exit})" if early_exit is not None
+               else f"rosbag did not close it within {grace:.0f} s")
         active = self.path.with_name(self.path.name + ".active")
         if active.exists():
-            why = (f"rosbag record ended by itself (exit code {early_exit})" if early_exit is not None
-                   else f"rosbag did not close it within {grace:.0f} s")
             raise RuntimeError(f"{active} has no index: {why}. To read what it holds: `rosbag reindex {active}`, "
                                f"then rename it to {self.path.name}")
+        if early_exit is not None and not self.path.exists():
+            raise RuntimeError(f"no {self.path.name} was written: {why}")

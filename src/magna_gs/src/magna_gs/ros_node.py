@@ -40,7 +40,7 @@ from std_msgs.msg import ColorRGBA, String
 from std_srvs.srv import Trigger, TriggerResponse
 from uav_abstraction_layer.msg import State as UalState
 
-from magna_gs.bag_recorder import BagRecorder
+from magna_gs.bag_recorder import BagRecorder, mission_topics
 from magna_gs.commands import CommandPlan, CommandRefused, Param, UavStatus, plan_command
 from magna_gs.factory import ActionClients, RosStateFactory, wait_sim_seconds
 from magna_gs.mission.build import build_machine
@@ -77,12 +77,7 @@ Private parameters (defaults):
 """
 
 SUCCESS_OUTCOMES = ("completed", "succeeded", "success", "mission_completed", "finished")
-# The UAL pose and velocity and the managers' navigation steps let mlr rebuild every recorded
-# control step from the bag (mlr.bags), e.g. for flights whose CSVs are lost or never written.
-BAG_WAIT = 15.0  # wall seconds; rosbag finds new topics about once a second
-BAG_TOPICS = (r"/tf|/tf_static|/magna/world/markers|/uav_[0-9]+/ual/pose|/uav_[0-9]+/ual/velocity"
-              r"|/magna/uav_[0-9]+/navigation|/magna/sm/mission/.*"
-              r"|/magna/uav_[0-9]+/path/.*|/magna/uav_[0-9]+/goal|/magna/gs/critical_event")
+BAG_WAIT = 15.0  # wall seconds for the bag to connect to the UAVs' topics
 
 
 class GroundStationServices:
@@ -323,7 +318,8 @@ class GroundStation:
             self.data_dir.mkdir(parents=True, exist_ok=True)
         self.save_data = bool(rospy.get_param("~save_data", self.hyper.get("save_data", True)))
         record = self.data_dir and rospy.get_param("~bag", self.hyper.get("save_bag", True))
-        self.bag = BagRecorder(self.data_dir / "simulation.bag", BAG_TOPICS) if record else None
+        self.bag = (BagRecorder(self.data_dir / "simulation.bag", mission_topics(c.id for c in self.mission.agents))
+                    if record else None)
         self.services = GroundStationServices(self.mission, self.mission_file, self.data_dir, self.save_data,
                                               float(rospy.get_param("~control_rate", 10.0)),
                                               rospy.get_param("~manager_output", "log"),
