@@ -54,7 +54,7 @@ class BagRecorder:
         self.node = rosgraph.names.ns_join(rosgraph.names.get_ros_namespace(), node_name)
         found = roslib.packages.find_node("rosbag", "record")
         if not found:
-            raise RuntimeError("rosbag's record executable was not found; install it: apt-get install rosbag")
+            raise RuntimeError("rosbag's record executable was not found; install it: apt-get install python3-rosbag")
         self.process = subprocess.Popen(
             [found[0], "--quiet", "-O", str(self.path), *topics, f"__name:={node_name}"],
             start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
