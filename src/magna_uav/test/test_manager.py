@@ -262,3 +262,26 @@ def test_a_short_basic_move_from_the_ground_station_is_flown_all_the_way():
     goal = SimpleNamespace(move_type="translation", direction="up", value=1.0, dynamic="position", duration=0.0)
     assert fly(manager, role_from_goal("basic_move", goal, config)).outcome == "succeeded"
     assert uavs[0].position[2] - start[2] >= 0.8, "not stopped within the 0.9 m a path's waypoint allows"
+
+
+def test_a_stale_hold_that_reaches_the_ual_after_the_waypoint_only_delays_it():
+    # The idle manager streams its held pose on a topic, the waypoint goes through a service: under
+    # load a hold published before the role began reached the UAL after the waypoint and replaced it.
+    manager, world, uavs, recorder, config = setup([[0, 0, 0]])
+    take_off(manager, uavs)
+    uav = uavs[0]
+    held = uav.position.copy()
+    go_to_waypoint = uav.go_to_waypoint
+
+    def waypoint_overtaken_by_a_stale_hold(position, yaw=0.0):
+        go_to_waypoint(position, yaw)
+        if uav.calls.count("go_to_waypoint") == 1:
+            uav.hold_pose(held, 0.0)
+
+    uav.go_to_waypoint = waypoint_overtaken_by_a_stale_hold
+    started = world.t
+    result = fly(manager, BasicMoveRole("translation", "up", 3.0, "position", duration=0.0),
+                 preempt_requested=lambda: world.t - started > 60.0)
+    assert result.outcome == "succeeded", result.message
+    assert uav.calls.count("go_to_waypoint") >= 2, "the waypoint was sent again"
+    assert uav.position[2] - held[2] == pytest.approx(3.0, abs=config.accepted_target_radius)

@@ -29,6 +29,12 @@ ABORTED = "aborted"
 _TROUBLES = (("collision", "collision"), ("out_of_bounds", ABORTED), ("GS_critical_event", "GS_critical_event"),
              ("low_battery", "low_battery"))
 
+# How often (s of sim time) a waypoint is sent again while a role flies to it. The held pose goes
+# out on the set_pose topic and the waypoint through a service; a hold published just before the
+# role began can reach the UAL after the waypoint and replace it (seen under load: the UAV hovered
+# until its battery ran low). Sent again, the waypoint wins within this period.
+WAYPOINT_RESEND_PERIOD = 1.0
+
 log = logging.getLogger("magna_uav.manager")
 
 
@@ -79,7 +85,7 @@ class UavManager:
         self.gs_critical_event = False  # set by the ground station (critical event) between steps
         self.role_name = "idle"
         self._hold: tuple[np.ndarray, float] | None = None  # pose held while hovering
-        self._sent_waypoint: np.ndarray | None = None
+        self._sent_waypoint: tuple[np.ndarray, float] | None = None  # (target, sim time sent)
 
     def run_role(self, role: Role, preempt_requested: Callable[[], bool] = lambda: False,
                  feedback: Callable[[RoleStep], None] = lambda step: None) -> RoleResult:
@@ -103,7 +109,7 @@ class UavManager:
                         self._record(now, None, np.zeros(3), "ual", evaluation, None, outcome)
                         return RoleResult(outcome, evaluation.reason, steps + 1, [outcome])
                     step = role.step(self.view, now)
-                    chosen, algorithm, feasible = self._execute(step)
+                    chosen, algorithm, feasible = self._execute(step, now)
                     self._record(now, step.goal, chosen, algorithm, evaluation, feasible, step.outcome or "")
                 steps += 1
                 feedback(step)
@@ -118,7 +124,7 @@ class UavManager:
         self._hold = None
         self._hover()
 
-    def _execute(self, step: RoleStep) -> tuple[np.ndarray, str, bool | None]:
+    def _execute(self, step: RoleStep, now: float) -> tuple[np.ndarray, str, bool | None]:
         """Carry out one step: the velocity commanded (zeros when the UAL autopilot flies), who chose
         it (a navigation algorithm, or "ual"), and ORCA's feasibility."""
         if step.action == FLY:
@@ -128,9 +134,11 @@ class UavManager:
             return np.asarray(command.velocity, dtype=float), command.algorithm, command.feasible
         if step.action == WAYPOINT:
             target = np.asarray(step.goal.position, dtype=float)
-            if self._sent_waypoint is None or not np.allclose(target, self._sent_waypoint):
+            self._hold = None  # a later hover holds where the UAV is then, not where it was before
+            sent = self._sent_waypoint
+            if sent is None or not np.allclose(target, sent[0]) or now - sent[1] >= WAYPOINT_RESEND_PERIOD:
                 self.commander.go_to_waypoint(target, step.goal.yaw if step.goal.yaw is not None else self.view.own.yaw)
-                self._sent_waypoint = target
+                self._sent_waypoint = (target, now)
         elif step.action == TAKE_OFF:
             self.commander.take_off(step.height)
         elif step.action == LAND:
