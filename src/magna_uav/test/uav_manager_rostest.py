@@ -39,6 +39,14 @@ def pose(x, y, z):
     return pose_stamped((x, y, z))
 
 
+def wait_until(done, what):
+    """Call `done` (which waits a little itself) until it is true; fail after WALL_LIMIT."""
+    deadline = time.monotonic() + WALL_LIMIT
+    while not done():
+        if time.monotonic() > deadline or rospy.is_shutdown():
+            raise AssertionError(f"{what} within {WALL_LIMIT:g} s of wall time")
+
+
 class Uav:
     def __init__(self, uav_id):
         self.id = uav_id
@@ -68,14 +76,16 @@ class Uav:
         """Stop once the trace holds a pose stamped now or later. A result can arrive before the
         poses that ended the role (they come on another connection, late under load)."""
         now = rospy.get_time()
-        deadline = time.monotonic() + WALL_LIMIT
-        while time.monotonic() < deadline and not rospy.is_shutdown():
+
+        def caught_up():
             with self.lock:
                 if self.trace and self.trace[-1][0] >= now:
                     self.tracing = False
-                    return
+                    return True
             time.sleep(0.01)
-        raise AssertionError(f"UAV {self.id}: no pose for {WALL_LIMIT:g} s of wall time")
+            return False
+
+        wait_until(caught_up, f"UAV {self.id}: no new pose")
 
     def where(self):
         with self.lock:
@@ -87,10 +97,7 @@ class Uav:
 
     def result(self, action):
         client = self.clients[action]
-        deadline = time.monotonic() + WALL_LIMIT
-        while not client.wait_for_result(rospy.Duration(0.5)):
-            if time.monotonic() > deadline or rospy.is_shutdown():
-                raise AssertionError(f"UAV {self.id} {action}: no result within {WALL_LIMIT:g} s of wall time")
+        wait_until(lambda: client.wait_for_result(rospy.Duration(0.5)), f"UAV {self.id} {action}: no result")
         return client.get_result()
 
     def do(self, action, **fields):
@@ -126,13 +133,12 @@ def sim_sleep(seconds):
 def wait_until_still(uavs, moved=0.02, window=0.5):
     """Until no UAV moved more than `moved` m in `window` s of sim time: a UAV stopped by the
     evaluator decelerates past the pose it holds and then flies back to it."""
-    deadline = time.monotonic() + WALL_LIMIT
-    while time.monotonic() < deadline and not rospy.is_shutdown():
+    def still():
         before = [uav.where() for uav in uavs]
         sim_sleep(window)
-        if all(float(np.linalg.norm(uav.where() - p)) < moved for uav, p in zip(uavs, before, strict=True)):
-            return
-    raise AssertionError(f"the UAVs still move after {WALL_LIMIT:g} s of wall time")
+        return all(float(np.linalg.norm(uav.where() - p)) < moved for uav, p in zip(uavs, before, strict=True))
+
+    wait_until(still, "the UAVs did not come to rest")
 
 
 class UavManagerFlights(unittest.TestCase):
