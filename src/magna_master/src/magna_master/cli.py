@@ -17,6 +17,7 @@ COMMANDS: list[tuple[str, str]] = [
     ("world", "magna_worlds.cli"),
     ("mission", "magna_gs.mission.cli"),
     ("run", "magna_master.run_cli"),
+    ("port", "magna_master.port_cli"),
     ("replay", "magna_viz.replay_cli"),
     ("report", "magna_viz.report_cli"),
     ("learn", "mlr.cli"),

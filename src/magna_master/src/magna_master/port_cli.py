@@ -1,0 +1,117 @@
+"""`magna port DIR`: can a folder of original ROS-MAGNA worlds and missions be used as it is?
+
+    magna port ~/ros_magna/Code/JSONs [--fly] [--strict] [--json FILE]
+
+Exit status: 0 when every file loads and every paired mission validates in its world (flights that
+end in a safety branch or a failure are part of the report, not errors), 2 when a file or a pair is
+refused, or the folder cannot be read.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+HELP = "porting report for a folder of ROS-MAGNA worlds and missions: what loads, migrates, warns and flies"
+
+_EPILOG = """\
+The folder is laid out as the original's Code/JSONs: Worlds/<family>/<name>.json and
+Missions/<family>/<name>.json (a folder of loose files works too). Each mission is paired with one
+world that holds every volume and geometry it names: a world of its own family first (the one with
+the mission's name, else the one whose name's words the mission's name contains, else the smallest),
+then likewise among the other families.
+
+The table has one row per file: loads (or REFUSED), migrated (how many changes the migration of an
+older schema made), warnings (what the original tolerated and MAGNA accepts, saying what it does),
+the paired world, validates (the mission's places resolve in it) and, with --fly, flies (one
+simulation each at --rtf, 'yes' when the mission ended in success). Below the table, each file's
+changes, warnings and refusals in full.
+
+examples:
+  magna port ../shared/ros_magna_corpus
+  magna port ~/ros_magna/Code/JSONs --fly --json port.json
+  magna port my_lab_files --strict        # new files: warnings are refusals
+"""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from magna_master import storage
+
+    parser.formatter_class = argparse.RawDescriptionHelpFormatter
+    parser.epilog = _EPILOG
+    parser.add_argument("folder", type=Path, metavar="DIR", help="folder holding Worlds/ and Missions/")
+    parser.add_argument("--fly", action="store_true",
+                        help="fly each validated pair once in magna run (needs the built workspace)")
+    parser.add_argument("--strict", action="store_true",
+                        help="treat warnings as refusals (for authors of new files)")
+    parser.add_argument("--seed", type=int, default=0, metavar="S", help="seed for random pose sets (default: 0)")
+    parser.add_argument("--rtf", default="max", metavar="max|FACTOR", help="real-time factor when flying "
+                                                                            "(default: max)")
+    parser.add_argument("--no-data", action="store_true",
+                        help="with --fly: keep no simulation folders (by default each flight is saved under "
+                             "DATA_ROOT/Simulations/... with the name 'port', appended)")
+    parser.add_argument("--data-root", type=Path, default=storage.DEFAULT_DATA_ROOT, metavar="DIR",
+                        help="with --fly: where Simulations/ goes (default: ~/magna_data)")
+    parser.add_argument("--time-limit", type=float, default=600.0, metavar="SECONDS",
+                        help="with --fly: wall-clock seconds per flight before it is stopped (default: 600)")
+    parser.add_argument("--json", type=Path, metavar="FILE", help="also write the report as JSON to FILE")
+    parser.add_argument("--force", action="store_true", help="replace an existing --json FILE")
+    parser.add_argument("--brief", action="store_true", help="the table and totals only, no per-file details")
+
+
+def run(args) -> int:
+    from magna_master.cli import UsageError
+    from magna_master.port import PortError, as_json, format_report, port_folder
+
+    if args.json is not None:
+        if args.json.exists() and not args.force:
+            raise UsageError(f"--json {args.json}: already exists; pass --force to replace it")
+        if not args.json.parent.is_dir():
+            raise UsageError(f"--json {args.json}: folder {args.json.parent} does not exist; create it first")
+    try:
+        report = port_folder(args.folder, strict=args.strict, seed=args.seed, progress=_Progress())
+    except PortError as error:
+        raise UsageError(str(error)) from None
+    _Progress.clear()
+    if args.fly:
+        _fly(report, args)
+    print(format_report(report, details=not args.brief), flush=True)
+    if args.json is not None:
+        from magna_master.storage import atomic_write_text
+
+        atomic_write_text(args.json, json.dumps(as_json(report), indent=2) + "\n")
+        print(f"json:    {args.json}")
+    return 2 if report.refused else 0
+
+
+def _fly(report, args) -> None:
+    from magna_master import storage
+    from magna_master.batch import BatchConfig, parse_rtf, resolve_inputs, run_batch
+    from magna_master.port import fly_pairs
+
+    rtf = parse_rtf(args.rtf)
+
+    def make_config(mission):
+        inputs = resolve_inputs(str(mission.world.path), str(mission.path), check=False)
+        return BatchConfig(inputs=inputs, n_iter=1, name="port", rtf=rtf, seed=args.seed,
+                           save_data=not args.no_data, data_root=args.data_root, policy=storage.APPEND,
+                           time_limit=args.time_limit or None)
+
+    def progress(index, total, mission):
+        print(f"flying {index} of {total}: {mission.label} in {mission.world.label}", file=sys.stderr, flush=True)
+
+    fly_pairs(report, make_config, lambda config: run_batch(config, progress=False), progress)
+
+
+class _Progress:
+    """One line on a terminal, rewritten per file; silent elsewhere."""
+
+    def __call__(self, what: str) -> None:
+        if sys.stderr.isatty():
+            print(f"\rchecking {what}"[:100].ljust(100), end="", file=sys.stderr, flush=True)
+
+    @staticmethod
+    def clear() -> None:
+        if sys.stderr.isatty():
+            print("\r" + " " * 100 + "\r", end="", file=sys.stderr, flush=True)
