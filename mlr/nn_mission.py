@@ -88,7 +88,8 @@ def nn_variant(mission, model_path: str, neighbor_dist: float | None = None,
     if not os.path.isabs(model_path):
         raise FlyError(f"model path {model_path!r} is relative: give the absolute path the UAV managers will load")
     if not isinstance(mission, dict) or not isinstance(mission.get("State_Machine"), list):
-        raise FlyError(f"{source}: not a mission: expected an object with a State_Machine list (DESIGN.md §3)")
+        raise FlyError(f"{source}: not a mission: expected an object with Agents_Config (or UAVs_Config) and a "
+                       "State_Machine list of states")
     variant = copy.deepcopy(mission)
     states = list(_walk_states(variant["State_Machine"], "State_Machine"))
     controls = [(where, node, p) for where, node in states if (p := _control(node)) is not None]

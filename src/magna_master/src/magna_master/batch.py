@@ -250,7 +250,7 @@ def check_inputs(inputs: Inputs, world_search: Sequence[Path]) -> None:
     if not isinstance(data, dict) or "State_Machine" not in data or not (
             "Agents_Config" in data or "UAVs_Config" in data):
         raise BatchError(f"{inputs.mission_file}: not a mission: expected an object with Agents_Config (or "
-                         "UAVs_Config) and State_Machine (DESIGN.md §3)")
+                         "UAVs_Config), a list of agents, and State_Machine, a list of states")
 
 
 # --- configuration and results --------------------------------------------------------------------------------
