@@ -6,6 +6,8 @@ Power drawn (W):
     SPEED_POWER_FACTOR = 0.005 s^2/m^2 a multirotor needs 12.5% more than hover at
     5 m/s and 50% more at 10 m/s: a rough stand-in for parasite drag, which grows
     with speed squared (the dip of translational lift at low speed is left out).
+    A fixed wing cannot hover: its flying power comes from `flying_power(speed, climb_rate)`
+    (fixed_wing.flying_power: cruise power from the airframe, with speed and climb).
 
 Voltage (V) is the open-circuit voltage of one LiPo cell at the state of charge,
 piecewise linear through typical resting values (4.20 V full, 3.84 V at half,
@@ -19,6 +21,7 @@ every power draw, so a test mission can reach a low battery in seconds.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 
@@ -32,15 +35,19 @@ _CELL_V = np.array([3.30, 3.61, 3.69, 3.73, 3.84, 4.02, 4.11, 4.20])
 
 
 class BatteryModel:
-    def __init__(self, spec: Battery, capacity_fraction: float = 1.0, drain_factor: float = 1.0):
+    def __init__(self, spec: Battery, capacity_fraction: float = 1.0, drain_factor: float = 1.0,
+                 flying_power: Callable[[float, float], float] | None = None):
         if not 0.0 <= capacity_fraction <= 1.0:
             raise ValueError(f"capacity_fraction: must be 0..1 (the starting charge), got {capacity_fraction}")
         if not (math.isfinite(drain_factor) and drain_factor > 0.0):
             raise ValueError(f"drain_factor: must be a positive number, got {drain_factor}")
         if spec.capacity_mah <= 0.0 or spec.voltage <= 0.0:
             raise ValueError(f"battery: capacity_mah and voltage must be positive, got {spec}")
+        if flying_power is None and spec.hover_power_w is None:
+            raise ValueError(f"battery: hover_power_w is needed to fly (or a flying_power model), got {spec}")
         self.spec = spec
         self.drain_factor = drain_factor
+        self.flying_power = flying_power
         self.capacity_ah = spec.capacity_mah / 1000.0
         self.charge_ah = self.capacity_ah * capacity_fraction
         self.power = 0.0  # W, drawn in the last update
@@ -60,13 +67,15 @@ class BatteryModel:
     def depleted(self) -> bool:
         return self.charge_ah <= 0.0
 
-    def update(self, dt: float, flying: bool, speed: float = 0.0) -> None:
-        """Draw `dt` seconds of power; `speed` (m/s) only counts while flying."""
+    def update(self, dt: float, flying: bool, speed: float = 0.0, climb_rate: float = 0.0) -> None:
+        """Draw `dt` seconds of power; `speed` and `climb_rate` (m/s) only count while flying."""
         if not (math.isfinite(dt) and dt >= 0.0):
             raise ValueError(f"dt: must be a finite number of seconds >= 0, got {dt}")
         if not math.isfinite(speed):
             raise ValueError(f"speed: must be finite, got {speed}")
-        if flying:
+        if flying and self.flying_power is not None:
+            power = self.flying_power(speed, climb_rate)
+        elif flying:
             power = self.spec.hover_power_w * (1.0 + SPEED_POWER_FACTOR * speed * speed)
         else:
             power = self.spec.idle_power_w

@@ -17,6 +17,7 @@ from .vehicle import Vehicle
 
 class LightModel:
     name = "light"
+    follows_guidance = True
 
     def __init__(self, client: int, physics_dt: float):
         self.client = client

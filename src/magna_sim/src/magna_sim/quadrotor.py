@@ -69,7 +69,7 @@ def _check_multirotor(airframe: Airframe) -> None:
     rotors = airframe.body.rotors
     if rotors == 0:
         raise AirframeError(f"{airframe.source}: 'body.rotors': 0 (a fixed wing); the dynamic flight model "
-                            f"flies multirotors only, use the light model for '{airframe.model}'")
+                            f"flies multirotors only, use the fixed_wing model for '{airframe.model}'")
     if rotors < 4 or rotors % 2:
         raise AirframeError(f"{airframe.source}: 'body.rotors': {rotors}; the dynamic flight model needs an even "
                             f"number of rotors, 4 or more (alternate spin directions cancel the yaw torque)")
@@ -171,6 +171,7 @@ class QuadrotorModel:
     """Multirotor rigid-body flight through rotor forces (4, 6, ... rotors); see the module docstring."""
 
     name = "dynamic"
+    follows_guidance = True
 
     def __init__(self, client: int, physics_dt: float, rng: np.random.Generator | None = None,
                  wind_std: float = 0.0):

@@ -48,7 +48,8 @@ that nodes starting meanwhile learn the time and the poses.
 Private parameters (defaults):
   ~uavs (0)              UAVs 1..N spawned at start, side by side along y near the origin
   ~model (iris)          their airframe (src/magna_uav/airframes/<model>.json)
-  ~flight_model (light)  light (kinematic) or dynamic (rotor forces)
+  ~flight_model (light)  light (kinematic) or dynamic (rotor forces); a fixed-wing airframe
+                         (plane) always flies fixed_wing (it cannot hover)
   ~spacing (2.0)         metres between the initial UAVs
   ~physics_rate (240)    physics steps per simulated second
   ~real_time_factor (1)  1 = real time, 10 = ten times faster, max (or 0) = as fast as possible

@@ -7,6 +7,10 @@ why and what state would accept it); the ROS layer turns that into a failed
 service call. `update` advances the machine after each physics step.
 Every accepted command bumps `command_id`, so a blocking call can tell when a
 newer command took its place.
+
+A fixed wing (an airframe with a fixed_wing block) runs the same machine; only what
+counts as done differs, because it cannot stop: a waypoint is reached once the plane
+circles it on its loiter circle, and a landing ends when the plane has rolled to a stop.
 """
 from __future__ import annotations
 
@@ -16,7 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .vehicle import Setpoint, SetpointMode, Vehicle
+from . import fixed_wing
+from .vehicle import Manoeuvre, Setpoint, SetpointMode, Vehicle
 
 
 class UalState(enum.IntEnum):  # values of uav_abstraction_layer/State
@@ -50,6 +55,7 @@ class UalLogic:
         self.state = UalState.UNINITIALIZED
         self.command_id = 0
         self.home = vehicle.position.copy()
+        self._fixed_wing = vehicle.airframe.fixed_wing  # None for a multirotor
         self._last_velocity_time = 0.0
         self._time = 0.0
 
@@ -61,7 +67,7 @@ class UalLogic:
         self._require(UalState.LANDED_ARMED, "take_off")
         target = self.vehicle.position + np.array([0.0, 0.0, height])
         self._command(Setpoint(SetpointMode.POSITION, position=target, yaw=self.vehicle.yaw,
-                               max_vertical_speed=self.settings.take_off_speed))
+                               max_vertical_speed=self.settings.take_off_speed, manoeuvre=Manoeuvre.TAKE_OFF))
         self.state = UalState.TAKING_OFF
 
     def land(self) -> None:
@@ -113,7 +119,9 @@ class UalLogic:
             if abs(vehicle.position[2] - vehicle.setpoint.position[2]) < self.settings.position_th / 2:
                 self.state = UalState.FLYING_AUTO
         elif state == UalState.LANDING:
-            if vehicle.position[2] < self.settings.landed_height and abs(vehicle.velocity[2]) < 0.2:
+            # A plane touches down at speed and rolls out: landed once it has stopped.
+            rolling = self._fixed_wing is not None and float(np.linalg.norm(vehicle.velocity[:2])) >= 0.2
+            if vehicle.position[2] < self.settings.landed_height and abs(vehicle.velocity[2]) < 0.2 and not rolling:
                 vehicle.setpoint = Setpoint(SetpointMode.OFF)
                 self.state = UalState.LANDED_ARMED
         elif (state == UalState.FLYING_AUTO and vehicle.setpoint.mode == SetpointMode.VELOCITY
@@ -126,6 +134,9 @@ class UalLogic:
         setpoint = self.vehicle.setpoint
         if setpoint.mode != SetpointMode.POSITION:
             return False
+        if self._fixed_wing is not None:  # it circles the point; its heading is its course
+            return fixed_wing.on_station(self._fixed_wing, setpoint.position, self.vehicle.position,
+                                         self.settings.position_th)
         distance = np.linalg.norm(setpoint.position - self.vehicle.position)
         heading = abs(float((setpoint.yaw - self.vehicle.yaw + math.pi) % (2 * math.pi) - math.pi))
         return distance < self.settings.position_th and heading < self.settings.orientation_th
@@ -140,7 +151,7 @@ class UalLogic:
         # Aim below the floor so the descent never stalls just above it; touching down ends it.
         target = np.array([self.vehicle.position[0], self.vehicle.position[1], -1.0])
         self._command(Setpoint(SetpointMode.POSITION, position=target, yaw=self.vehicle.yaw,
-                               max_vertical_speed=self.settings.land_speed))
+                               max_vertical_speed=self.settings.land_speed, manoeuvre=Manoeuvre.LAND))
         self.state = UalState.LANDING
 
     def _command(self, setpoint: Setpoint) -> None:

@@ -29,6 +29,15 @@ class SetpointMode(enum.IntEnum):
     VELOCITY = 2  # track `velocity` (map frame) and `yaw_rate`
 
 
+class Manoeuvre(enum.IntEnum):
+    """What a POSITION setpoint is for. Multirotors fly them all alike; a fixed wing cannot hover,
+    so it climbs out along its heading to take off and glides down a slope to land."""
+
+    GOTO = 0  # fly to `position` and hold there
+    TAKE_OFF = 1  # climb to `position[2]`
+    LAND = 2  # descend to the ground
+
+
 @dataclass
 class Setpoint:
     mode: SetpointMode = SetpointMode.OFF
@@ -38,6 +47,7 @@ class Setpoint:
     yaw_rate: float = 0.0
     # Vertical speed cap for this manoeuvre (take-off and landing are gentler); None = airframe limit.
     max_vertical_speed: float | None = None
+    manoeuvre: Manoeuvre = Manoeuvre.GOTO
 
 
 def yaw_from_quaternion(x: float, y: float, z: float, w: float) -> float:
@@ -53,7 +63,7 @@ class Vehicle:
         self.name = name  # model name, e.g. "uav_1"
         self.uav_id = uav_id
         self.airframe = airframe
-        self.flight_model = flight_model  # "light" or "dynamic"
+        self.flight_model = flight_model  # "light", "dynamic" or "fixed_wing"
         self.body_id = body_id  # pybullet body, set by the world
         self.position = np.array(position, dtype=float)
         self.orientation = np.array(orientation, dtype=float)  # quaternion x y z w; sets yaw too
@@ -81,9 +91,13 @@ class Vehicle:
 
 
 class FlightModel(Protocol):
-    """What the world needs from a flight model (light.LightModel, quadrotor.QuadrotorModel)."""
+    """What the world needs from a flight model (light.LightModel, quadrotor.QuadrotorModel,
+    fixed_wing.FixedWingModel)."""
 
     name: str
+    # True: the world hands it guidance.velocity_commands; False: it flies the setpoints itself
+    # (a fixed wing cannot follow a multirotor's velocity reference) and ignores those arguments.
+    follows_guidance: bool
 
     def attach(self, vehicle: Vehicle) -> None:
         """Called once after the world created the vehicle's body."""

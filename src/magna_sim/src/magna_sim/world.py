@@ -16,14 +16,15 @@ import pybullet as p
 
 from magna_uav.airframes import AirframeError, available_models, load_airframe
 
-from . import bodies, guidance, shapes
+from . import bodies, fixed_wing, guidance, shapes
 from .battery import BatteryModel
+from .fixed_wing import FixedWingModel
 from .light import LightModel
 from .quadrotor import QuadrotorModel
 from .ual_logic import UalLogic, UalSettings, UalState
 from .vehicle import Vehicle
 
-FLIGHT_MODELS = ("light", "dynamic")
+FLIGHT_MODELS = ("light", "dynamic", "fixed_wing")
 
 
 class SpawnError(ValueError):
@@ -66,7 +67,8 @@ class SimWorld:
         self.ground_impact_speed = ground_impact_speed
         self.ual_settings = ual_settings
         self.models = {"light": LightModel(self.client, self.dt),
-                       "dynamic": QuadrotorModel(self.client, self.dt, rng=self.rng, wind_std=wind_std)}
+                       "dynamic": QuadrotorModel(self.client, self.dt, rng=self.rng, wind_std=wind_std),
+                       "fixed_wing": FixedWingModel(self.client, self.dt)}
         self.vehicles: dict[int, Vehicle] = {}  # by UAL id
         self.ual: dict[int, UalLogic] = {}
         self.batteries: dict[int, BatteryModel] = {}
@@ -100,9 +102,7 @@ class SimWorld:
             frame.require_physics()
         except AirframeError as err:
             raise SpawnError(f"airframe: {err}; known: {', '.join(available_models())}") from None
-        if flight_model == "dynamic" and frame.body.rotors == 0:
-            raise SpawnError(f"flight_model: '{airframe}' has no rotors ({frame.source}: body.rotors = 0); "
-                             "fly it with the light model")
+        flight_model = _flight_model_for(airframe, frame, flight_model)
         position = _finite("pose.position", position)
         _finite("pose.orientation (yaw)", [yaw], size=1)
         orientation = np.array([0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)])
@@ -112,7 +112,8 @@ class SimWorld:
         self.models[flight_model].attach(vehicle)
         self.vehicles[uav_id] = vehicle
         self.ual[uav_id] = UalLogic(vehicle, self.ual_settings)
-        self.batteries[uav_id] = BatteryModel(frame.battery)
+        self.batteries[uav_id] = BatteryModel(
+            frame.battery, flying_power=fixed_wing.flying_power(frame) if frame.is_fixed_wing else None)
         self._by_body[body_id] = ("uav", str(uav_id))
         return vehicle
 
@@ -153,8 +154,10 @@ class SimWorld:
                   for kind, model in self.models.items()]
         groups = [(model, group) for model, group in groups if group]
         for model, group in groups:
-            velocity, yaw_rate = guidance.velocity_commands(group)
-            model.apply_controls(group, velocity, yaw_rate)
+            if model.follows_guidance:
+                model.apply_controls(group, *guidance.velocity_commands(group))
+            else:
+                model.apply_controls(group, None, None)
         p.stepSimulation(physicsClientId=self.client)
         self.steps += 1
         for model, group in groups:
@@ -168,7 +171,7 @@ class SimWorld:
         """Advance every battery by dt; an empty one makes its UAV land, as an autopilot failsafe does."""
         for uav_id, battery in self.batteries.items():
             vehicle = self.vehicles[uav_id]
-            battery.update(dt, vehicle.motors_on, float(np.linalg.norm(vehicle.velocity)))
+            battery.update(dt, vehicle.motors_on, float(np.linalg.norm(vehicle.velocity)), float(vehicle.velocity[2]))
             if battery.depleted and self.ual[uav_id].state in (UalState.TAKING_OFF, UalState.FLYING_AUTO):
                 self.ual[uav_id].failsafe_land()
 
@@ -197,7 +200,11 @@ class SimWorld:
             other_kind, other_name = self._by_body.get(other, ("obstacle", str(other)))
             other_velocity = self.vehicles[int(other_name)].velocity if other_kind == "uav" else np.zeros(3)
             speed = float(np.linalg.norm(vehicle.velocity - other_velocity))
-            if other_kind == "ground" and speed < self.ground_impact_speed:
+            impact = speed
+            if other_kind == "ground" and vehicle.flight_model == "fixed_wing" and self.ual[vehicle.uav_id].state in (
+                    UalState.TAKING_OFF, UalState.LANDING, UalState.LANDED_ARMED):
+                impact = abs(float(vehicle.velocity[2]))  # a plane launches and lands running: only the sink hits
+            if other_kind == "ground" and impact < self.ground_impact_speed:
                 continue  # landing and sitting on the ground are not collisions
             if other_kind == "uav":
                 distance = np.linalg.norm(self.vehicles[int(other_name)].position - vehicle.position)
@@ -218,6 +225,21 @@ class SimWorld:
         p.removeBody(body_id, physicsClientId=self.client)
         del self._by_body[body_id]
         self._touching = {pair for pair in self._touching if body_id not in pair}
+
+
+def _flight_model_for(airframe: str, frame, asked: str) -> str:
+    """The model that flies `frame`: a fixed wing always flies fixed_wing ("light", the default every
+    spawner sends, means "the kinematic model of this airframe"); a multirotor never does."""
+    if frame.is_fixed_wing:
+        if asked == "dynamic":
+            raise SpawnError(f"flight_model: '{airframe}' has no rotors ({frame.source}: body.rotors = 0); "
+                             "fly it with the fixed_wing model (or light, which picks it for a fixed wing)")
+        return "fixed_wing"
+    if asked == "fixed_wing":
+        raise SpawnError(f"flight_model: '{airframe}' is a multirotor ({frame.source}: body.rotors = "
+                         f"{frame.body.rotors}); fixed_wing flies airframes with a fixed_wing block, "
+                         "use light or dynamic")
+    return asked
 
 
 def _finite(field: str, values, size: int = 3) -> np.ndarray:

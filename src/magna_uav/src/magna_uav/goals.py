@@ -36,6 +36,8 @@ def role_from_goal(action: str, goal, config: UavConfig) -> Role:
         # The original compared move_type == ("translation" or "rotation"), so rotation never ran.
         # A short move needs a tighter arrival than a path's waypoints: a fifth of the move, at least 0.1 m.
         accepted = min(config.accepted_target_radius, max(0.1, 0.2 * abs(goal.value)))
+        if config.airframe.is_fixed_wing:  # a plane cannot stop: it circles the goal, beyond a short move's radius
+            accepted = config.accepted_target_radius
         return BasicMoveRole(move_type, goal.direction, goal.value, goal.dynamic or "position", goal.duration,
                              accepted_radius=accepted)
     if action == "follow_path":
