@@ -50,8 +50,6 @@ CASES = [  # (where to change, new value, the problem expected: JSON path: messa
     (["State_Machine", 1, "occurrencies", 0, "parameters", "height"], -1,
      "State_Machine[1].occurrencies[0].parameters.height: expected a height above the take-off point in m, > 0, "
      "got -1"),
-    (["State_Machine", 1, "occurrencies", 0, "ids"], [1, 3],
-     "State_Machine[1].occurrencies[0].ids: UAV 3 not in Agents_Config (IDs 1, 2)"),
     (["State_Machine", 1, "occurrencies", 0, "ids"], "some",
      "State_Machine[1].occurrencies[0].ids: expected an id (a whole number >= 0), a non-empty list of ids, or "
      "\"all\", got 'some'"),
@@ -68,8 +66,6 @@ CASES = [  # (where to change, new value, the problem expected: JSON path: messa
     (["State_Machine", 2, "occurrencies_outcome_map", "completed"], {"3_path": "succeeded"},
      "State_Machine[2].occurrencies_outcome_map.completed.3_path: no child named '3_path'; children: 1_path, "
      "2_follow (or \"all\")"),
-    (["State_Machine", 2, "occurrencies_outcome_map", "completed"], {"1_path": "succeded"},
-     "State_Machine[2].occurrencies_outcome_map.completed.1_path: '1_path' never ends with 'succeded'"),
     (["State_Machine", 0, "parameters", "initial_poses", 1], DELETE,
      "State_Machine[0].parameters.initial_poses: 1 pose(s) for 2 agents (1, 2); give one [volume, geometry, kind, "
      "arg] per agent"),
@@ -84,14 +80,35 @@ CASES = [  # (where to change, new value, the problem expected: JSON path: messa
      "State_Machine[3].occurrencies: missing; a Concurrence lists its states under occurrencies (spelled so)"),
     (["State_Machine", 3, "ids"], DELETE,
      "State_Machine[3].ids: missing; a container is registered as {id}_{name}: give an id (e.g. 1)"),
-    (["Agents_Config", 1, "ID"], 1,
-     "Agents_Config[1].ID: 1 is already the ID of Agents_Config[0]"),
     (["Agents_Config", 0, "mode"], "simulation",
      "Agents_Config[0].mode: 'simulation' is not one of sitl, hil, real"),
     (["State_Machine", 0, "outcomes", "completed"], "completed",  # no transition leads to 1_take_off any more
      "State_Machine[1]: '1_take_off' is never reached from 'spawn' (the first state of MISSION): no transition "
      "leads to it; add one or remove the state"),
 ]
+
+
+# What the original tolerated loads with a warning (test_mission_porting.py); strict mode refuses it.
+STRICT_CASES = [
+    (["State_Machine", 1, "occurrencies", 0, "ids"], [1, 3],
+     "State_Machine[1].occurrencies[0].ids: UAV 3 not in Agents_Config (IDs 1, 2)"),
+    (["State_Machine", 2, "occurrencies_outcome_map", "completed"], {"1_path": "succeded"},
+     "State_Machine[2].occurrencies_outcome_map.completed: never satisfied: '1_path' never ends with 'succeded'"),
+    (["Agents_Config", 1, "ID"], 1,
+     "Agents_Config[1].ID: 1 is already the ID of Agents_Config[0]"),
+]
+
+
+@pytest.mark.parametrize("where,value,expected", STRICT_CASES, ids=[str(c[2])[:60] for c in STRICT_CASES])
+def test_strict_mode_refuses_what_is_otherwise_a_warning(write_mission, base_mission, where, value, expected):
+    set_in(base_mission, where, value)
+    path = write_mission(base_mission)
+    loaded = load_mission(path)
+    assert any(w.startswith(f"{path}: {expected}") for w in loaded.warnings), loaded.warnings
+    with pytest.raises(MissionError) as error:
+        load_mission(path, strict=True)
+    assert any(p.startswith(f"{path}: {expected}") and p.endswith("strict mode turns warnings into errors]")
+               for p in error.value.problems), error.value.problems
 
 
 @pytest.mark.parametrize("where,value,expected", CASES, ids=[str(c[2])[:60] for c in CASES])
@@ -136,12 +153,13 @@ def test_a_state_that_cannot_be_read_stops_the_structural_checks(write_mission, 
 
 
 def test_structural_problems_are_also_all_reported(write_mission, base_mission):
-    base_mission["State_Machine"][1]["occurrencies"][0]["ids"] = [1, 4]
+    base_mission["State_Machine"][1]["occurrencies"][0]["ids_var"] = "wp"
     base_mission["State_Machine"][2]["outcome_cb"] = "nope"
     base_mission["State_Machine"][3]["outcomes"]["completed"] = "finished"
     path, problems = problems_of(write_mission, base_mission)
     assert [p.split(": ")[1] for p in problems] == [
-        "State_Machine[1].occurrencies[0].ids", "State_Machine[2].outcome_cb", "State_Machine[3].outcomes.completed"]
+        "State_Machine[1].occurrencies[0].ids_var", "State_Machine[2].outcome_cb",
+        "State_Machine[3].outcomes.completed"]
 
 
 def test_legacy_files_are_named_by_their_own_keys(write_mission, base_mission):

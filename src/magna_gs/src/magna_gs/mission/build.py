@@ -22,7 +22,7 @@ from magna_gs.mission.model import (
     MissionError,
 )
 from magna_gs.mission.outcome_callbacks import CHILD_TERMINATION_CALLBACKS, OUTCOME_CALLBACKS
-from magna_gs.mission.plan import Plan, PlannedState, plan_mission
+from magna_gs.mission.plan import ABSENT_UAV_OUTCOME, Plan, PlannedState, plan_mission
 from magna_sm import Concurrence, Sequence, State, StateMachine, ValidationError
 
 
@@ -84,7 +84,21 @@ def build_machine(mission: Mission, factory: StateFactory, plan: Plan | None = N
     return machine
 
 
+class AbsentUavState(State):
+    """An action state of a UAV the mission does not configure: nobody would answer its goal, so it ends at once."""
+
+    def __init__(self, description: str):
+        super().__init__(ACTION_OUTCOMES)
+        self.description = description
+
+    def execute(self, ud) -> str:
+        return ABSENT_UAV_OUTCOME
+
+
 def _make(state: PlannedState, mission: Mission, factory: StateFactory) -> State:
+    if state.kind == "SimpleActionState" and state.absent:
+        return AbsentUavState(f"{mission.where(state.json_path)}: {state.state_type} for UAV {state.uav}, which "
+                              f"{mission.agents_key} does not configure")
     if state.kind == "SimpleActionState":
         made = factory.action_state(state.uav, state.state_type, state.parameters, state.json_path)
         return _checked(made, ACTION_OUTCOMES, "action_state", state, mission)

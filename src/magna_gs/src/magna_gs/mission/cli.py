@@ -1,6 +1,6 @@
 """`magna mission`: check a mission file (structure, and against a world), or draw its state machine.
 
-    magna mission check MISSION [--world WORLD] [--search-path DIR ...] [--seed N]
+    magna mission check MISSION [--world WORLD] [--search-path DIR ...] [--seed N] [--strict]
     magna mission draw MISSION -o mission.png [--search-path DIR ...] [--title T] [--force]
 
 MISSION and WORLD are files, or names as the hyperparameters give them
@@ -32,6 +32,11 @@ agent ids, follow targets, ...) and its state machine built and checked. With --
 every pose definition (spawn poses, paths) is resolved in that world as the world node
 will, without spawning anything. Warnings go to stderr; problems are one line each on
 stderr, `magna mission: FILE: JSON.PATH: message`, and exit 2.
+
+A warning is something the original ROS-MAGNA tolerated and MAGNA works around (it says
+how): a safety branch naming a UAV the mission does not configure, an outcome-map entry
+that can never match, an ID given twice, a key nothing reads, ... --strict refuses them
+(exit 2), for authors of new files.
 
 Names are looked up as <dir>/<mission>/<submission>.json (and <dir>/Missions/...) in
 each --search-path DIR, then $MAGNA_MISSIONS_PATH, then missions/; worlds as
@@ -70,6 +75,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                        help="world file or <world>/<subworld> name to resolve the mission's poses in")
     check.add_argument("--seed", type=int, default=0, metavar="N",
                        help="seed of the world's random pose sets and of random queries (default: %(default)s)")
+    check.add_argument("--strict", action="store_true",
+                       help="refuse what would only be a warning (what the original tolerated): for new files")
     check.set_defaults(_mission_run=_check)
 
     draw = sub.add_parser("draw", help="draw a mission's state machine",
@@ -125,7 +132,7 @@ def _load(args):
     folders = [*args.search_path, *_default_missions()]
     try:
         path = resolve_mission_path(args.mission, folders)
-        return load_mission(path)
+        return load_mission(path, strict=getattr(args, "strict", False))
     except MissionError as error:
         raise _Problems([" ".join(p.split()) for p in error.problems]) from None
 

@@ -2,6 +2,7 @@
 
     loaded = load_mission("missions/Gym/Two_Paths.json")
     loaded.mission, loaded.changes, loaded.warnings, loaded.plan
+    load_mission(path, strict=True)   # warnings are problems too (MissionError)
 
 Missions are also found by name, `<mission>/<submission>` as the hyperparameters give
 them (`find_mission("Gym/2UAVs_2paths_Central_Cylinder")`), in each folder of the search
@@ -24,6 +25,7 @@ from magna_gs.mission.plan import Plan
 
 PROJECT_MISSIONS = Path(__file__).resolve().parents[5] / "missions"  # <repo>/missions, beside src/
 CORPUS_SUBFOLDER = "Missions"  # a ROS-MAGNA tree keeps its missions here
+STRICT_NOTE = "[refused: strict mode turns warnings into errors]"
 
 
 @dataclass
@@ -88,8 +90,10 @@ def read_mission_json(path: Path, source: str):
         raise MissionError(f"{source}: not valid JSON: {err.msg} at line {err.lineno} column {err.colno}") from None
 
 
-def mission_from_data(data, source: str, validate: bool = True, airframe_dir: Path | None = None) -> LoadedMission:
-    """Migrate, parse and (by default) validate already-read JSON; MissionError lists every problem found."""
+def mission_from_data(data, source: str, validate: bool = True, airframe_dir: Path | None = None,
+                      strict: bool = False) -> LoadedMission:
+    """Migrate, parse and (by default) validate already-read JSON; MissionError lists every problem found.
+    `strict`: the warnings (what the original tolerated and MAGNA works around) are problems too."""
     migration = migrate(data)
     parsed = parse_mission(migration, source, airframe_dir)
     loaded = LoadedMission(parsed.mission, list(migration.changes), list(parsed.warnings))
@@ -101,12 +105,16 @@ def mission_from_data(data, source: str, validate: bool = True, airframe_dir: Pa
         problems += report.problems
         loaded.warnings += report.warnings
         loaded.plan = report.plan
+    if strict:
+        problems += [f"{warning} {STRICT_NOTE}" for warning in loaded.warnings]
     if problems:
         raise MissionError(problems)
     return loaded
 
 
-def load_mission(path, validate: bool = True, airframe_dir: Path | None = None) -> LoadedMission:
-    """Load a mission file (either schema); MissionError lists every problem, each with file and JSON path."""
+def load_mission(path, validate: bool = True, airframe_dir: Path | None = None,
+                 strict: bool = False) -> LoadedMission:
+    """Load a mission file (either schema); MissionError lists every problem, each with file and JSON path.
+    `strict=True` refuses what would otherwise be a warning (for authors of new files; `--strict`)."""
     source = str(path)
-    return mission_from_data(read_mission_json(Path(path), source), source, validate, airframe_dir)
+    return mission_from_data(read_mission_json(Path(path), source), source, validate, airframe_dir, strict)

@@ -11,7 +11,10 @@ Two generations of ROS-MAGNA missions exist (both in real files, sometimes mixed
 - `ids_var: uav` -> `ids_var: agent`; parameters `time` -> `duration`;
 - a `wait` with a duration and no `exit_type` -> `exit_type: time`;
 - outcome-map conditions `succeeded` / `aborted` on a CBState child (save_csv was an action
-  state once, and maps kept its vocabulary) -> `completed` / `failed`.
+  state once, and maps kept its vocabulary) -> `completed` / `failed`;
+- a pose definition of three items (February-March 2019, when the world read no fourth item
+  for these kinds): `[volume, geometry, "path"]` -> `[..., "path", null]` (the geometry's
+  zigzag path) and `[volume, geometry, "random"]` -> `[..., "random", 1]` (one random pose).
 
 `migrate(data)` never changes its argument and never fails: what it does not recognise
 is left for the parser to report. Migration renames and fills in, it never adds or
@@ -37,6 +40,9 @@ LEGACY_SPAWN_VOLUME, LEGACY_SPAWN_GEOMETRY = "Ground_Station", "Agents_take_off"
 # new_world made world 1 from the world and subworld of the hyperparameters.
 LEGACY_NEW_WORLD = {"action": "spawn", "id": 1, "world_part_def": "from_hyperparameters"}
 CB_OUTCOME_FOR_ACTION_OUTCOME = {"succeeded": "completed", "aborted": "failed"}
+# Until April 2019 the world answered "path" with the geometry's (only) zigzag path and "random" with one random
+# pose, reading no fourth item; files of that time write three. The fourth item each kind takes now:
+THREE_ITEM_DEFINITION_ARG = {"path": (None, "the geometry's zigzag path"), "random": (1, "one random pose")}
 
 
 @dataclass
@@ -110,6 +116,7 @@ def _node(node: Any, path: str, n_agents: int, result: Migration) -> None:
         result.changes.append(f"{path}.ids_var: {ids_var} -> {node['ids_var']}")
     parameters = node.get("parameters")
     if isinstance(parameters, dict):
+        _three_item_definitions(parameters, f"{path}.parameters", result)
         if "time" in parameters and "duration" not in parameters:
             node["parameters"] = parameters = {("duration" if k == "time" else k): v for k, v in parameters.items()}
             result.changes.append(f"{path}.parameters.time -> duration")
@@ -123,6 +130,29 @@ def _node(node: Any, path: str, n_agents: int, result: Migration) -> None:
             _node(child, f"{path}.occurrencies[{index}]", n_agents, result)
         if node.get("type") == "Concurrence":
             _callback_outcomes_in_map(node, children, path, result)
+
+
+def _three_item_definitions(parameters: dict, path: str, result: Migration) -> None:
+    """[volume, geometry, "path" | "random"] (no fourth item) in paths and initial poses -> four items."""
+    places = []
+    if isinstance(parameters.get("path"), list):
+        places += [(item, "definition", f"{path}.path[{i}].definition")
+                   for i, item in enumerate(parameters["path"]) if isinstance(item, dict)]
+    if isinstance(parameters.get("initial_poses"), list):
+        places += [(parameters["initial_poses"], i, f"{path}.initial_poses[{i}]")
+                   for i in range(len(parameters["initial_poses"]))]
+    for holder, key, where in places:
+        definition = holder.get(key) if isinstance(holder, dict) else holder[key]
+        if (isinstance(definition, list) and len(definition) == 3 and isinstance(definition[2], str)
+                and definition[2] in THREE_ITEM_DEFINITION_ARG):
+            arg, meaning = THREE_ITEM_DEFINITION_ARG[definition[2]]
+            holder[key] = [*definition, arg]
+            result.changes.append(f"{where}: [{', '.join(map(str, definition))}] -> fourth item {_json(arg)} "
+                                  f"({meaning}, what a definition of three items meant)")
+
+
+def _json(value) -> str:
+    return "null" if value is None else str(value)
 
 
 def _callback_outcomes_in_map(node: dict, children: list, path: str, result: Migration) -> None:

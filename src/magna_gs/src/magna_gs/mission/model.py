@@ -1,6 +1,6 @@
 """A mission as typed objects: agents, and the tree of state nodes with typed parameters.
 
-The JSON format (DESIGN.md §3, the original ROS-MAGNA's) is read once by `parse` into
+The JSON format (the original ROS-MAGNA's, both of its schemas) is read once by `parse` into
 these objects; everything after (validation, planning, building, world checks) reads
 attributes, never dictionaries. Every node keeps its JSON path, so any later finding
 can say where in the file it is (`State_Machine[7].occurrencies[0].parameters.path[2]`).

@@ -127,7 +127,7 @@ def _agents(reader: _Reader, airframe_dir: Path | None):
         reader.fail(AGENTS_KEY, "missing; list the agents: [{\"ID\": 1, \"model\": \"iris\", \"mode\": \"sitl\", "
                                 "\"marker_color\": [255, 0, 0, 0.5]}, ...]")
         return [], key
-    raw = original[key]
+    raw = _tolerated_agent_entries(reader, original[key], key)
     try:
         kwargs = {} if airframe_dir is None else {"airframe_dir": airframe_dir}
         agents = configs_from_mission(raw, reader.source, key, **kwargs)
@@ -138,6 +138,40 @@ def _agents(reader: _Reader, airframe_dir: Path | None):
     if not agents:
         reader.fail(key, "no agents; a mission needs at least one ({\"ID\": 1, \"model\": \"iris\", ...})")
     return agents, key
+
+
+# Keys of the DJI airframe a mission entry could override in the original (its launch file read them); MAGNA's
+# simulated and MAVLink UAVs have no such settings.
+IGNORED_AGENT_KEYS = {"laser_altimeter": "the DJI autopilot's laser altimeter switch",
+                      "self_arming": "the DJI autopilot's self-arming switch"}
+
+
+def _tolerated_agent_entries(reader: _Reader, raw: Any, key: str) -> Any:
+    """The agent entries with what the original tolerated in them made explicit, each with a warning: DJI-only keys
+    dropped, and an ID given twice replaced by the entry's position (the original numbered agents by position)."""
+    if not isinstance(raw, list):
+        return raw
+    entries = [dict(entry) if isinstance(entry, dict) else entry for entry in raw]
+    for index, entry in enumerate(entries):
+        if not isinstance(entry, dict):
+            continue
+        for name, what in IGNORED_AGENT_KEYS.items():
+            if name in entry:
+                del entry[name]
+                reader.warn(f"{key}[{index}].{name}", f"{what}; MAGNA's UAVs have no such setting, ignored")
+    ids = [e.get("ID") if isinstance(e, dict) else None for e in entries]
+    for index, entry in enumerate(entries):
+        agent_id = ids[index]
+        if not _is_int(agent_id) or agent_id not in ids[:index]:
+            continue
+        position = index + 1
+        if position in ids:  # the position is another agent's ID: no faithful reading; the config check refuses it
+            continue
+        entry["ID"] = ids[index] = position
+        reader.warn(f"{key}[{index}].ID", f"{agent_id} is already the ID of {key}[{ids.index(agent_id)}]; the "
+                                          f"original ignored ID and numbered agents by position, so this one is "
+                                          f"agent {position} (give it \"ID\": {position})")
+    return entries
 
 
 # --- nodes ---------------------------------------------------------------------------------------------------------

@@ -23,6 +23,10 @@ Expansion (`ids`, `ids_var`)
 - A CBState is one state and keeps its `name`; its ids (expanded the same way) are the
   agents it addresses (save_csv, algorithm_control). spawn_agents addresses every
   agent unless ids are given.
+- An action state naming a UAV that Agents_Config does not configure (real missions
+  keep safety branches written for more UAVs than they fly) is kept, marked `absent`,
+  and ends "aborted" at once when reached, as the original's did when no UAV manager
+  served its goal (a warning says so).
 
 Outcomes
 - Leaves end with `model.ACTION_OUTCOMES` or `model.CALLBACK_OUTCOMES`.
@@ -40,7 +44,9 @@ Outcomes
 - A container's outcomes are exactly those its children can produce (plus
   "preempted"): an outcome written in `outcomes` that nothing inside can produce is
   dropped, and the parent's transition for it is never taken (a warning). An outcome
-  map entry that waits for an outcome a child can never produce is dropped likewise.
+  map entry that waits for an outcome a child can never produce (not even one outside
+  the child's vocabulary, e.g. "completed" of an action state: the original's map just
+  never matched) is dropped likewise.
 """
 from __future__ import annotations
 
@@ -65,6 +71,9 @@ from magna_gs.mission.outcome_callbacks import CHILD_TERMINATION_CALLBACKS, OUTC
 PREEMPTED = "preempted"  # every container's (magna_sm adds it)
 WP_CHAIN_OUTCOME = "succeeded"  # how wp copies follow each other in a StateMachine
 ROOT_LABEL = "MISSION"
+# What an action state for a UAV the mission does not configure ends with: the original's goal found no action
+# server and its SimpleActionState ended so.
+ABSENT_UAV_OUTCOME = "aborted"
 
 
 @dataclass
@@ -83,6 +92,7 @@ class PlannedState:
     outcome_map: dict[str, dict[str, str]] = field(default_factory=dict)  # Concurrence: expanded, pruned
     default_outcome: str | None = None  # Concurrence
     connector_outcome: str | None = None  # Sequence
+    absent: bool = False  # SimpleActionState of a UAV the mission does not configure: ends ABSENT_UAV_OUTCOME at once
 
     @property
     def json_path(self) -> str:
@@ -191,9 +201,16 @@ class _Planner:
                       "waypoint of parameters.path)")
             return []
         else:
-            uavs = self._agent_ids(node, node.ids, "UAV")
+            uavs = [node.ids] if isinstance(node.ids, int) else list(node.ids) if node.ids != "all" else self.agents
+        absent = [uav for uav in uavs if uav not in self.agents]
+        if absent:
+            labels = ", ".join(f"'{uav}_{node.name}'" for uav in absent)
+            self.warn(f"{node.json_path}.ids", f"UAV {', '.join(map(str, absent))} not in {self.mission.agents_key} "
+                      f"(IDs {', '.join(map(str, self.agents)) or 'none'}): no UAV manager will answer {labels}, so "
+                      f"if this state is reached it ends '{ABSENT_UAV_OUTCOME}' at once, as in the original (whose "
+                      "goal found no action server); configure the UAV or remove the state")
         return [PlannedState(f"{uav}_{node.name}", node, "SimpleActionState", uav=uav, parameters=node.parameters,
-                             outcomes=ACTION_OUTCOMES) for uav in uavs]
+                             outcomes=ACTION_OUTCOMES, absent=uav not in self.agents) for uav in uavs]
 
     def _waypoints(self, node: Node, ctx: _Context, parent_kind: str) -> list[PlannedState]:
         params = node.parameters
@@ -371,22 +388,22 @@ class _Planner:
                     continue
                 for label in named:
                     expanded[label] = wanted
-            impossible = []
+            impossible, foreign = [], []
             for label, wanted in expanded.items():
                 child = labels[label]
                 vocabulary = set(child.outcomes) | (set(child.node.outcomes) if child.node.is_container else set())
-                if wanted not in vocabulary:
-                    key = label if label in conditions else ALL_CHILDREN
-                    self.fail(f"{node.json_path}.occurrencies_outcome_map.{outcome}.{key}",
-                              f"'{label}' never ends with '{wanted}'; its outcomes: {', '.join(child.outcomes)}")
-                    ok = False
+                if wanted not in vocabulary:  # the original's map simply never matched (its files have these)
+                    foreign.append(f"'{label}' never ends with '{wanted}' (its outcomes: {', '.join(child.outcomes)})")
                 elif wanted not in child.outcomes:
-                    impossible.append(f"'{label}' cannot end with '{wanted}'")
+                    impossible.append(f"'{label}' cannot end with '{wanted}' (no state inside leads to it)")
             if not ok:
                 continue
-            if impossible:
+            if impossible or foreign:
+                deciders = "its other entries" + (", its outcome_cb" if node.outcome_cb else "")
                 self.warn(f"{node.json_path}.occurrencies_outcome_map.{outcome}",
-                          f"never satisfied: {'; '.join(impossible)} (no state inside leads to it)")
+                          f"never satisfied: {'; '.join(foreign + impossible)}; this entry is left out, as it never "
+                          f"matched in the original either (the Concurrence ends by {deciders} or "
+                          f"'{CONCURRENCE_DEFAULT_OUTCOME}')")
                 continue
             outcome_map[outcome] = expanded
         possible = list(outcome_map)
