@@ -152,3 +152,15 @@ def test_help_lists_the_actions_with_examples(capsys):
     for argv in (["mission", "--help"], ["mission", "check", "--help"], ["mission", "draw", "--help"]):
         status, out, _ = magna(capsys, *argv)
         assert status == 0 and "examples:" in out
+
+
+def test_strict_check_refuses_a_warning_with_exit_2(capsys, write_mission, base_mission):
+    base_mission["State_Machine"][1]["occurrencies"][0]["ids"] = [1, 2, 3]  # UAV 3 is not configured
+    path = write_mission(base_mission)
+    status, out, err = magna(capsys, "mission", "check", path)
+    assert status == 0 and f"magna mission: warning: {path}: State_Machine[1].occurrencies[0].ids: UAV 3" in err
+    status, out, err = magna(capsys, "mission", "check", path, "--strict")
+    assert status == 2 and out == ""
+    assert err.splitlines() == [f"magna mission: {w} [refused: strict mode turns warnings into errors]"
+                                for w in [line.removeprefix("magna mission: warning: ") for line in
+                                          magna(capsys, "mission", "check", path)[2].splitlines()]]

@@ -189,3 +189,27 @@ def test_spawn_agents_without_initial_poses_is_refused(write_mission):
         load_mission(path_)
     assert any(p.startswith(f"{path_}: State_Machine[0].parameters.initial_poses: missing;") and "[volume, geometry"
                in p for p in error.value.problems), error.value.problems
+
+
+# --- the January 2019 schema: the file is the state list, leaves named by their type -------------------------------
+
+def test_a_state_list_gets_agents_and_leaves_named_by_type_get_their_state_type(write_mission):
+    states = [
+        {"type": "CBState", "name": "new_world", "outcomes": {"completed": "spawn_uavs"}},
+        {"type": "CBState", "name": "spawn_uavs", "outcomes": {"completed": "1_take_off"}},
+        {"type": "Concurrence", "name": "take_off", "ids": 1,
+         "occurrencies": [{"type": "SimpleActionState", "name": "take_off", "ids": [1, 2], "ids_var": "uav",
+                           "parameters": {"height": 2}}],
+         "occurrencies_outcome_map": {"completed": {"all": "succeeded"}}, "outcomes": {"completed": "completed"}}]
+    path_ = write_mission(states)
+    loaded = load_mission(path_)
+    assert loaded.mission.agent_ids == [1, 2] and {a.model for a in loaded.mission.agents} == {"iris"}
+    assert loaded.changes[0].startswith("the file is the state list alone (January 2019")
+    assert "[2].occurrencies[0].state_type: added 'take_off' (its name, which named the type then)" in loaded.changes
+    assert [s.state_type for s in loaded.plan.root.leaves()] == ["world_config", "spawn_agents", "take_off",
+                                                                 "take_off"]
+    # findings name the file's own paths (no State_Machine key in it)
+    states[2]["occurrencies"][0]["parameters"]["height"] = -1
+    with pytest.raises(MissionError) as error:
+        load_mission(write_mission(states))
+    assert error.value.problems[0].startswith(f"{path_}: [2].occurrencies[0].parameters.height: expected a height")

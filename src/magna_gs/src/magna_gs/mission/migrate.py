@@ -1,6 +1,10 @@
 """Legacy mission JSON -> the current schema, in one step that says what it changed.
 
-Two generations of ROS-MAGNA missions exist (both in real files, sometimes mixed in one):
+Three generations of ROS-MAGNA missions exist (all in real files, sometimes mixed in one):
+
+- January 2019: the file is the state list alone (the Master's N_uav and uav_models gave the
+  UAVs) -> `State_Machine`, with agents 1..N (N the highest UAV id the states name, iris, sitl);
+  a leaf with no `state_type` took the type from its name -> `state_type: <name>`;
 
 - `UAVs_Config` (entries with `uav_manager_on_gs`) -> `Agents_Config` (`agent_manager_on_gs`);
 - state_type `new_world` (no parameters: world 1 from the hyperparameters) -> `world_config`
@@ -40,6 +44,11 @@ LEGACY_SPAWN_VOLUME, LEGACY_SPAWN_GEOMETRY = "Ground_Station", "Agents_take_off"
 # new_world made world 1 from the world and subworld of the hyperparameters.
 LEGACY_NEW_WORLD = {"action": "spawn", "id": 1, "world_part_def": "from_hyperparameters"}
 CB_OUTCOME_FOR_ACTION_OUTCOME = {"succeeded": "completed", "aborted": "failed"}
+# The January 2019 schema (the file is the state list): the agents it gets, as the Master's defaults flew them.
+STATE_LIST_MODEL = "iris"
+STATE_LIST_COLORS = ((255, 0, 0, 0.5), (0, 255, 0, 0.5), (0, 0, 255, 0.5), (255, 255, 0, 0.5))
+# Leaf types whose name was the type before state_type existed (besides the renamed legacy ones).
+NAME_TYPES = ("take_off", "land", "follow_path", "basic_move", "save_csv", "wait")
 # Until April 2019 the world answered "path" with the geometry's (only) zigzag path and "random" with one random
 # pose, reading no fourth item; files of that time write three. The fourth item each kind takes now:
 THREE_ITEM_DEFINITION_ARG = {"path": (None, "the geometry's zigzag path"), "random": (1, "one random pose")}
@@ -68,6 +77,10 @@ class Migration:
 def migrate(data: Any) -> Migration:
     """Bring a mission to the current schema; `changes` says what was done, in file order."""
     result = Migration(copy.deepcopy(data), data)
+    root = "State_Machine"
+    if _is_state_list(result.data):
+        _agents_for_a_state_list(result)
+        root = ""  # the file's own paths: [3].occurrencies[0]...
     mission = result.data
     if not isinstance(mission, dict):
         return result
@@ -88,13 +101,47 @@ def migrate(data: Any) -> Migration:
     nodes = mission.get("State_Machine")
     if isinstance(nodes, list):
         for index, node in enumerate(nodes):
-            _node(node, f"State_Machine[{index}]", n_agents, result)
+            _node(node, f"{root}[{index}]", n_agents, result)
     return result
+
+
+def _is_state_list(data: Any) -> bool:
+    return isinstance(data, list) and bool(data) and all(isinstance(n, dict) and "type" in n for n in data)
+
+
+def _agents_for_a_state_list(result: Migration) -> None:
+    """The January 2019 schema: the file is the state list; the Master's N_uav and uav_models gave the UAVs."""
+    states = result.data
+    named = sorted({i for node in states for i in _uav_ids(node)})
+    count = max(named, default=1)
+    result.data = {AGENTS_KEY: [{"ID": i, "model": STATE_LIST_MODEL, "mode": "sitl",
+                                        "marker_color": list(STATE_LIST_COLORS[(i - 1) % len(STATE_LIST_COLORS)])}
+                                       for i in range(1, count + 1)],
+                   "State_Machine": states}
+    result.changes.append(f"the file is the state list alone (January 2019, when the Master's N_uav and uav_models "
+                          f"gave the UAVs) -> State_Machine, with {AGENTS_KEY} of {count} {STATE_LIST_MODEL} UAV(s) "
+                          f"(IDs 1..{count}, the highest the states name); write {AGENTS_KEY} to fly others")
+    for index in range(len(states)):
+        result.renamed[f"State_Machine[{index}]"] = f"[{index}]"
+
+
+def _uav_ids(node: dict):
+    """The UAV ids a node (and what it holds) names explicitly."""
+    if node.get("ids_var") in ("uav", "agent"):
+        ids = node.get("ids")
+        for i in ids if isinstance(ids, list) else [ids]:
+            if isinstance(i, int) and not isinstance(i, bool) and i >= 1:
+                yield i
+    for child in node.get("occurrencies") or []:
+        if isinstance(child, dict):
+            yield from _uav_ids(child)
 
 
 def _node(node: Any, path: str, n_agents: int, result: Migration) -> None:
     if not isinstance(node, dict):
         return
+    if "state_type" not in node and node.get("type") in ("CBState", "SimpleActionState"):
+        _type_from_name(node, path, result)
     state_type = node.get("state_type")
     if isinstance(state_type, str) and state_type in STATE_TYPE_RENAMES:
         new_type = STATE_TYPE_RENAMES[state_type]
@@ -120,7 +167,8 @@ def _node(node: Any, path: str, n_agents: int, result: Migration) -> None:
         if "time" in parameters and "duration" not in parameters:
             node["parameters"] = parameters = {("duration" if k == "time" else k): v for k, v in parameters.items()}
             result.changes.append(f"{path}.parameters.time -> duration")
-            result.renamed[f"{path}.parameters.duration"] = f"{path}.parameters.time"
+            migrated = path if path.startswith("State_Machine") else f"State_Machine{path}"  # a state list's
+            result.renamed[f"{migrated}.parameters.duration"] = f"{path}.parameters.time"
         if node.get("state_type") == "wait" and "exit_type" not in parameters and "duration" in parameters:
             parameters["exit_type"] = "time"
             result.changes.append(f"{path}.parameters.exit_type: added 'time' (a legacy wait of a duration)")
@@ -130,6 +178,15 @@ def _node(node: Any, path: str, n_agents: int, result: Migration) -> None:
             _node(child, f"{path}.occurrencies[{index}]", n_agents, result)
         if node.get("type") == "Concurrence":
             _callback_outcomes_in_map(node, children, path, result)
+
+
+def _type_from_name(node: dict, path: str, result: Migration) -> None:
+    """Until late January 2019 a leaf had no state_type: its name was the type (new_world, take_off, ...)."""
+    name = node.get("name")
+    known = (*STATE_TYPE_RENAMES, *STATE_TYPE_RENAMES.values(), *NAME_TYPES)
+    if isinstance(name, str) and name in known:
+        node["state_type"] = name
+        result.changes.append(f"{path}.state_type: added '{name}' (its name, which named the type then)")
 
 
 def _three_item_definitions(parameters: dict, path: str, result: Migration) -> None:

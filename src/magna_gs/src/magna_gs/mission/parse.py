@@ -118,6 +118,8 @@ def _agents(reader: _Reader, airframe_dir: Path | None):
     from magna_uav.config import ConfigError, configs_from_mission
 
     original = reader.migration.original
+    if not isinstance(original, dict):  # a state list: the migration wrote the agents
+        original = reader.migration.data
     key = LEGACY_AGENTS_KEY if isinstance(original, dict) and LEGACY_AGENTS_KEY in original else AGENTS_KEY
     if isinstance(original, dict) and AGENTS_KEY in original and LEGACY_AGENTS_KEY in original:
         reader.fail(LEGACY_AGENTS_KEY, f"give the agents once, under {AGENTS_KEY} (not also under the legacy "
