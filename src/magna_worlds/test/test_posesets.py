@@ -691,9 +691,15 @@ def boundary_world(z_of_geometry):
              "dimensions": [2, 2, 2], "poses_sets": [{"type": "matrix", "dimensions": [2, 1, 1]}]}]}]}}
 
 
-def test_poses_outside_the_world_boundaries_are_refused():
-    assert resolve_world(world_from_data(boundary_world(5.0), "inside.json")).pose_count() == 2
+def test_poses_outside_the_world_boundaries_are_kept_with_a_warning_and_refused_when_strict():
+    inside = resolve_world(world_from_data(boundary_world(5.0), "inside.json"))
+    assert inside.pose_count() == 2 and inside.warnings == []
+    outside = resolve_world(world_from_data(boundary_world(12.0), "outside.json"))
+    assert outside.pose_count() == 2 and len(outside.warnings) == 1
+    assert outside.warnings[0].startswith("outside.json: scenario.volumes[0].geometries[0].poses_sets[0]: puts 2 of "
+                                          "its 2 poses outside scenario.world_boundaries [[-5, 5], [-5, 5], [0, 10]]")
+    assert "they are kept (the original did not check)" in outside.warnings[0]
     with pytest.raises(WorldError) as err:
-        resolve_world(world_from_data(boundary_world(12.0), "outside.json"))
-    assert str(err.value).startswith("outside.json: scenario.volumes[0].geometries[0].poses_sets[0]: 2 poses fall "
-                                     "outside scenario.world_boundaries")
+        resolve_world(world_from_data(boundary_world(12.0), "outside.json"), strict=True)
+    assert err.value.path == "scenario.volumes[0].geometries[0].poses_sets[0]"
+    assert str(err.value).endswith("(refused with --strict)")

@@ -1,10 +1,12 @@
 """`magna world`: check a world file and say what it holds, or draw it.
 
-    magna world check FILE [--seed N] [--json]
+    magna world check FILE [--seed N] [--json] [--strict]
     magna world draw FILE -o world.png [--seed N] [--elev E] [--azim A] [--force]
 
 A bad world file gets one line on stderr, `magna world: <file>: <json path>: <message>`,
 and exit status 2 (a `magna_master.cli.UsageError`, printed by `run`); nothing is written.
+What the original ROS-MAGNA tolerated gets one line each on stderr,
+`magna world: warning: <file>: <json path>: <what MAGNA does>`; `--strict` refuses it (exit 2).
 """
 from __future__ import annotations
 
@@ -26,15 +28,19 @@ examples:
 """
 
 _CHECK_EPILOG = """\
-The summary lists the file, the worlds it includes, the boundaries, origin_geo, then
-per volume its geometries (shape, tf frame, poses per pose-set type, obstacles),
-the totals and the time taken. Unknown fields are reported as warnings on stderr.
+The summary lists the file, its format (an older format is migrated first: the changes
+are listed), the worlds it includes, the boundaries, origin_geo, then per volume its
+geometries (shape, tf frame, poses per pose-set type, obstacles), the totals and the
+time taken. What the original tolerated (unknown fields, no world_boundaries, poses
+outside them, ...) is loaded and reported as one warning each on stderr,
+`magna world: warning: FILE: JSON.PATH: what MAGNA does`; --strict refuses it instead.
 A bad file prints one line `magna world: FILE: JSON.PATH: message` and exits 2.
 
 examples:
   magna world check worlds/Gym/1Obs_Central_Cylinder.json
   magna world check worlds/Delivery/Delivery.json --seed 3
   magna world check worlds/Delivery/Delivery.json --json | python3 -m json.tool
+  magna world check my_new_world.json --strict     # for authors: warnings are errors
 """
 
 _DRAW_EPILOG = """\
@@ -61,6 +67,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     check.add_argument("file", metavar="FILE", help="world JSON file (e.g. worlds/<world>/<subworld>.json)")
     _seed(check)
     check.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    check.add_argument("--strict", action="store_true",
+                       help="refuse what would be a warning (exit 2): for authors of new world files")
     check.set_defaults(_world_run=_check)
 
     draw = sub.add_parser("draw", help="draw a world file to a PNG",
@@ -97,8 +105,9 @@ def run(args) -> int:
 
 # --- check ----------------------------------------------------------------------------------------------------
 
-def _load(path: str, seed: int):
-    """(resolved world, load seconds, resolve seconds); a WorldError becomes a one-line usage error."""
+def _load(path: str, seed: int, strict: bool = False):
+    """(resolved world, load seconds, resolve seconds); a WorldError becomes a one-line usage error.
+    Warnings go to stderr, one line each."""
     from magna_master.cli import UsageError
     from magna_worlds.errors import WorldError
     from magna_worlds.generate import resolve_world
@@ -106,14 +115,14 @@ def _load(path: str, seed: int):
 
     try:
         start = time.perf_counter()
-        world = load_world(path)
+        world = load_world(path, strict=strict)
         loaded = time.perf_counter()
-        resolved = resolve_world(world, seed)
+        resolved = resolve_world(world, seed, strict=strict)
         done = time.perf_counter()
     except WorldError as error:
         raise UsageError(" ".join(str(error).split())) from None  # one line, whatever the message holds
-    for warning in world.warnings:
-        print(f"magna world: warning: {warning}", file=sys.stderr)
+    for warning in resolved.warnings:
+        print(f"magna world: warning: {' '.join(warning.split())}", file=sys.stderr)
     return resolved, loaded - start, done - loaded
 
 
@@ -150,7 +159,8 @@ def summary(resolved, load_seconds: float = 0.0, resolve_seconds: float = 0.0) -
                    "poses": resolved.pose_count(), "poses_by_type": dict(by_type),
                    "obstacles": len(resolved.obstacles()), "frames": len(resolved.static_transforms())},
         "load_ms": round(load_seconds * 1e3, 3), "generate_ms": round(resolve_seconds * 1e3, 3),
-        "warnings": list(world.warnings),
+        "warnings": list(resolved.warnings), "changes": list(world.changes),
+        "boundaries_defaulted": world.boundaries_defaulted,
     }
 
 
@@ -159,13 +169,18 @@ def _counts(by_type: dict) -> str:
 
 
 def format_summary(data: dict) -> str:
+    changes = data.get("changes", [])
     lines = [f"file        {data['file']}",
-             f"included    {', '.join(data['included']) if data['included'] else '(none)'}"]
+             "format      " + (f"older format migrated to the current one: {len(changes)} change(s)" if changes
+                              else "current (nothing to migrate)")]
+    lines += [f"  {change}" for change in changes]
+    lines.append(f"included    {', '.join(data['included']) if data['included'] else '(none)'}")
     if data["world_boundaries"] is None:
         lines.append("boundaries  (none)")
     else:
         (x0, x1), (y0, y1), (z0, z1) = data["world_boundaries"]
-        lines.append(f"boundaries  x {x0:g}..{x1:g}  y {y0:g}..{y1:g}  z {z0:g}..{z1:g} m")
+        made = " (not in the file: the box around its geometries)" if data.get("boundaries_defaulted") else ""
+        lines.append(f"boundaries  x {x0:g}..{x1:g}  y {y0:g}..{y1:g}  z {z0:g}..{z1:g} m{made}")
     geo = data["origin_geo"]
     lines.append(f"origin_geo  {'(none)' if geo is None else f'lat {geo[0]:g}, lon {geo[1]:g}, alt {geo[2]:g} m'}")
     lines.append(f"seed        {data['seed']}")
@@ -191,12 +206,12 @@ def format_summary(data: dict) -> str:
                  f"{t['frames']} tf frame(s)")
     lines.append(f"time        loaded in {data['load_ms']:.1f} ms, generated in {data['generate_ms']:.1f} ms")
     if data["warnings"]:
-        lines.append(f"warnings    {len(data['warnings'])} (unknown fields, ignored; listed on stderr)")
+        lines.append(f"warnings    {len(data['warnings'])} (what the original tolerated; listed on stderr)")
     return "\n".join(lines)
 
 
 def _check(args) -> int:
-    resolved, load_seconds, resolve_seconds = _load(args.file, args.seed)
+    resolved, load_seconds, resolve_seconds = _load(args.file, args.seed, args.strict)
     data = summary(resolved, load_seconds, resolve_seconds)
     print(json.dumps(data, indent=2) if args.json else format_summary(data))
     return 0

@@ -81,6 +81,7 @@ class ResolvedWorld:
     seed: int
     volume_frames: dict[str, Frame]  # volume -> map
     geometries: list[PlacedGeometry]
+    warnings: list[str] = field(default_factory=list)  # the world's, then the lay-out's
 
     def geometry(self, volume: str, name: str) -> PlacedGeometry | None:
         return next((g for g in self.geometries if g.volume.name == volume and g.geometry.name == name), None)
@@ -118,34 +119,41 @@ def set_rng(seed: int, volume: str, geometry: str, index: int) -> np.random.Gene
     return np.random.default_rng([seed, zlib.crc32(volume.encode()), zlib.crc32(geometry.encode()), index])
 
 
-def resolve_world(world: World, seed: int = 0) -> ResolvedWorld:
-    """Lay out every pose set and obstacle; raises WorldError for a set that cannot be laid out, or whose
-    poses or obstacles fall outside the world boundaries (where UAVs may not fly)."""
+def resolve_world(world: World, seed: int = 0, strict: bool = False) -> ResolvedWorld:
+    """Lay out every pose set and obstacle; raises WorldError for a set that cannot be laid out. Poses or
+    obstacles outside the world boundaries are kept with a warning (the original never checked them); `strict`
+    refuses them instead."""
     volume_frames = {v.name: v.origin for v in world.volumes}
     placed = [_place_geometry(v, g, seed) for v in world.volumes for g in v.geometries]
-    resolved = ResolvedWorld(world, seed, volume_frames, placed)
+    resolved = ResolvedWorld(world, seed, volume_frames, placed, list(world.warnings))
     _check_unique_frames(resolved)
-    _check_inside_boundaries(resolved)
+    _check_inside_boundaries(resolved, strict)
     return resolved
 
 
-def _check_inside_boundaries(resolved: ResolvedWorld) -> None:
+def _check_inside_boundaries(resolved: ResolvedWorld, strict: bool) -> None:
+    """One warning per pose set with poses outside the boundaries: a UAV there is out of the world."""
     low, high = resolved.world.boundaries[:, 0], resolved.world.boundaries[:, 1]
     for g in resolved.geometries:
-        for s in g.pose_sets:
-            positions = s.positions if s.spec.use == "poses" else np.array([o.position for o in g.obstacles])
+        for s in g.poses():
+            positions = s.positions
             outside = np.flatnonzero(np.any((positions < low - 1e-9) | (positions > high + 1e-9), axis=1))
-            if len(outside):
-                point = positions[outside[0]].round(3).tolist()
-                raise WorldError(g.volume.source, s.spec.source_path, f"{len(outside)} {s.spec.use} fall outside "
-                                 f"scenario.world_boundaries {resolved.world.boundaries.tolist()}, e.g. {point} in "
-                                 "map; move the geometry or widen the boundaries")
+            if not len(outside):
+                continue
+            point = ", ".join(f"{v:g}" for v in positions[outside[0]].round(3))
+            box = ", ".join(f"[{a:g}, {b:g}]" for a, b in resolved.world.boundaries.tolist())
+            message = (f"puts {len(outside)} of its {len(positions)} poses outside scenario.world_boundaries "
+                       f"[{box}], e.g. ({point}) in map; they are kept (the original did not check), and a UAV "
+                       "there is out of the world and aborted. Move the geometry or widen the boundaries")
+            if strict:
+                raise WorldError(g.volume.source, s.spec.source_path, f"{message} (refused with --strict)")
+            resolved.warnings.append(f"{g.volume.source}: {s.spec.source_path}: {message}")
 
 
 def _place_geometry(volume: Volume, geometry: Geometry, seed: int) -> PlacedGeometry:
     frame = volume.origin.compose(geometry.origin)
-    placed = PlacedGeometry(volume, geometry, f"{volume.prefix}_{geometry.name}", f"{volume.prefix}_{geometry.prefix}",
-                            frame)
+    placed = PlacedGeometry(volume, geometry, f"{volume.prefix}_{geometry.name}",
+                            f"{volume.prefix}_{geometry.frame_prefix or geometry.prefix}", frame)
     listed, obstacles, matrices, zigzags = 0, 0, 0, 0
     for index, spec in enumerate(geometry.pose_sets):
         rng = set_rng(seed, volume.name, geometry.name, index)

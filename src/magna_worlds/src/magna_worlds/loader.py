@@ -1,9 +1,25 @@
-"""Read a world JSON file (ros_magna format, DESIGN.md §3) into `model` objects, checking every field once.
+"""Read a world JSON file (the ROS-MAGNA world format) into `model` objects, checking every field once.
 
 Every error is a `WorldError` naming the file and the JSON path. A volume written
 `{"name": "JSON", "world": W, "subworld": S}` includes the volumes of
 `<worlds root>/W/S.json`, looked up first next to the including file (its world
 folder's parent), then in each folder of `search_path`.
+
+Files of every era of the original ROS-MAGNA load: an older format is first brought to
+the current one by `migrate` (each change listed in `World.changes`), and what the
+original tolerated without a word gets one warning in `World.warnings` saying what
+MAGNA does with it (`strict=True` refuses it instead):
+
+- no `world_boundaries` in the file checked (files from before the field existed, and
+  parts that other worlds include): the box around every geometry plus `BOUNDARY_MARGIN`;
+- a volume without `prefix` (a part that added geometries to a volume of the running
+  world): the volume's name;
+- two geometries of one volume with the same name (the original's look-ups by name found
+  the later one): the earlier is renamed `<name>_<index>`;
+- two geometries of one volume with the same prefix (the original published their pose
+  frames twice): the later one's pose and obstacle frames are named after its name;
+- a pose set of type `path` (a zigzag through a grid in the oldest format; ignored from
+  `poses_sets` on): skipped.
 """
 from __future__ import annotations
 
@@ -11,6 +27,7 @@ import json
 import math
 import os
 from collections.abc import Iterable
+from dataclasses import dataclass, replace
 from numbers import Real
 from pathlib import Path
 from typing import Any
@@ -18,6 +35,7 @@ from typing import Any
 import numpy as np
 
 from magna_worlds.errors import WorldError, join_path
+from magna_worlds.migrate import Migration, migrate
 from magna_worlds.model import (
     MATRIX_TYPES,
     POSE_SET_TYPES,
@@ -31,10 +49,44 @@ from magna_worlds.model import (
     Volume,
     World,
 )
-from magna_worlds.shapes import SHAPES, ShapeError, parse_shape
+from magna_worlds.shapes import SHAPES, ShapeError, half_extents, parse_shape
 from magna_worlds.transforms import Frame, quaternions_from_rpy
 
 PROJECT_WORLDS = Path(__file__).resolve().parents[4] / "worlds"  # <repo>/worlds, beside src/
+BOUNDARY_MARGIN = 10.0  # m around the geometries, when a file gives no world_boundaries
+IGNORED_SET_TYPES = ("path",)  # read by the oldest format only; later code skipped it without a word
+
+# What a missing field holds, for the message that asks for it (the format in words).
+FIELD_HELP = {
+    "scenario": 'the top-level object {"scenario": {"world_boundaries": ..., "volumes": [...]}}',
+    "volumes": "a list of volumes, each {name, prefix, origin, geometries}",
+    "name": "a name (missions refer to it)",
+    "prefix": "a short text that starts the names of its tf frames",
+    "origin": "[[x, y, z], [roll, pitch, yaw]] in its parent's frame (m, radians)",
+    "geometries": "a list of geometries, each {name, prefix, shape, origin, dimensions}",
+    "shape": "one of cube, sphere, cylinder, prism, torus",
+    "dimensions": "the sizes in the shape's convention (a cube [x, y, z]; a prism [height, [[x, y], ...]])",
+    "type": "one of matrix, random, coordinates, zigzag",
+    "quantity": "how many random poses, a whole number >= 1",
+    "coordinates": "[[[x, y, z], [roll, pitch, yaw]], ...] in the geometry's frame",
+    "height": "the sweep's height above the prism's base, in m",
+    "spacing": "[along each line, between lines] in m",
+    "obstacles_shape": "the obstacle shapes drawn from, e.g. [\"cube\"]",
+    "obstacles_dimensions": "[d0, d1, d2] in the shape's convention, each fixed or [low, high]",
+    "world": "the world folder of the included file",
+    "subworld": "the included file's name without .json",
+    "world_boundaries": "[[xmin, xmax], [ymin, ymax], [zmin, zmax]] in m",
+}
+
+
+@dataclass(frozen=True)
+class CheckedWorld:
+    """A world file loaded and laid out once: what `magna world check` reports."""
+
+    world: World
+    resolved: Any  # magna_worlds.generate.ResolvedWorld
+    warnings: tuple[str, ...]  # of the file and of its lay-out
+    changes: tuple[str, ...]  # what the migration of an older format changed
 
 
 def default_search_path() -> list[Path]:
@@ -43,18 +95,29 @@ def default_search_path() -> list[Path]:
     return [*extra, PROJECT_WORLDS]
 
 
-def load_world(path, search_path: Iterable[Path] | None = None) -> World:
-    """Load and check a world file; raises WorldError."""
+def load_world(path, search_path: Iterable[Path] | None = None, strict: bool = False) -> World:
+    """Load and check a world file; raises WorldError. `strict` refuses what would be a warning."""
     path = Path(path)
     data = _read_json(path, str(path))
     return world_from_data(data, str(path), base=path.parent.parent,
-                           search_path=default_search_path() if search_path is None else list(search_path))
+                           search_path=default_search_path() if search_path is None else list(search_path),
+                           strict=strict)
+
+
+def load_world_checked(path, search_path: Iterable[Path] | None = None, strict: bool = False,
+                       seed: int = 0) -> CheckedWorld:
+    """Load a world file and lay it out for `seed`: every warning (the file's and the lay-out's) and change."""
+    from magna_worlds.generate import resolve_world  # generate imports this module
+
+    world = load_world(path, search_path, strict=strict)
+    resolved = resolve_world(world, seed, strict=strict)
+    return CheckedWorld(world, resolved, tuple(resolved.warnings), world.changes)
 
 
 def world_from_data(data: Any, source: str, base: Path | None = None,
-                    search_path: Iterable[Path] = ()) -> World:
+                    search_path: Iterable[Path] = (), strict: bool = False) -> World:
     """Check already-parsed JSON (a whole `{"scenario": ...}` or a bare list of volumes, as missions inline it)."""
-    reader = _Loader(list(search_path))
+    reader = _Loader(list(search_path), strict)
     if isinstance(data, list):
         data = {"scenario": {"volumes": data}}
         boundaries_required = False
@@ -89,22 +152,52 @@ def _read_json(path: Path, source: str) -> Any:
         raise WorldError(source, "", f"not valid JSON: {err.msg} at line {err.lineno} column {err.colno}") from None
 
 
+def default_boundaries(volumes: Iterable[Volume], margin: float = BOUNDARY_MARGIN) -> np.ndarray:
+    """The box around every geometry (and every volume origin) in map, `margin` m larger on each side."""
+    points = []
+    for volume in volumes:
+        points.append(volume.origin.translation[None, :])
+        for geometry in volume.geometries:
+            low, high = half_extents(geometry.spec)
+            corners = np.array([[x, y, z] for x in (low[0], high[0]) for y in (low[1], high[1])
+                                for z in (low[2], high[2])])
+            points.append(volume.origin.compose(geometry.origin).apply(corners))
+    stacked = np.vstack(points) if points else np.zeros((1, 3))
+    return np.column_stack([stacked.min(axis=0) - margin, stacked.max(axis=0) + margin]).round(3)
+
+
+def format_box(box: np.ndarray) -> str:
+    return "  ".join(f"{axis} {low:g}..{high:g}" for axis, (low, high) in zip("xyz", box.tolist(), strict=True)) + " m"
+
+
 class _Loader:
-    def __init__(self, search_path: list[Path]):
+    def __init__(self, search_path: list[Path], strict: bool = False):
         self.search_path = search_path
+        self.strict = strict
         self.included: list[str] = []
         self.warnings: list[str] = []
+        self.changes: list[str] = []
         self._stack: list[str] = []
+
+    def warn(self, f: _Fields, where: str, message: str) -> None:
+        """One warning: what the original tolerated and what MAGNA does with it; an error when strict."""
+        where = f.migration.original_path(where)
+        if self.strict:
+            raise WorldError(f.source, where, f"{message} (refused with --strict)")
+        self.warnings.append(f"{f.source}: {where}: {message}" if where else f"{f.source}: {message}")
 
     # --- world and volumes ------------------------------------------------------------------------------------
 
     def world(self, data: Any, source: str, base: Path | None, boundaries_required: bool) -> World:
         self._stack.append(str(Path(source).resolve()) if base is not None else source)
-        f = _Fields(source)
+        migration = migrate(data)
+        self.changes += [f"{source}: {change}" for change in migration.changes]
+        data = migration.data
+        f = _Fields(source, migration)
         scenario = f.object(f.key(data, "", "scenario"), "scenario")
         boundaries = None
-        if "world_boundaries" in scenario or boundaries_required:
-            boundaries = f.boundaries(f.key(scenario, "scenario", "world_boundaries"), "scenario.world_boundaries")
+        if "world_boundaries" in scenario:
+            boundaries = f.boundaries(scenario["world_boundaries"], "scenario.world_boundaries")
         origin_geo = None
         if "origin_geo" in scenario:
             lat, lon, alt = f.numbers(scenario["origin_geo"], "scenario.origin_geo", 3,
@@ -124,9 +217,17 @@ class _Loader:
                                  "give each volume its own name")
             names[volume.name] = f"{volume.source}: {volume.source_path}"
         self._stack.pop()
+        defaulted = False
+        if boundaries is None and boundaries_required:
+            boundaries, defaulted = default_boundaries(volumes), True
+            self.warn(f, "scenario.world_boundaries", "missing (files older than the field have none, and so have "
+                      "parts that other worlds include); MAGNA uses the box around every geometry plus "
+                      f"{BOUNDARY_MARGIN:g} m on each side, {format_box(boundaries)}, and aborts a UAV that leaves "
+                      "it. Add world_boundaries [[xmin, xmax], [ymin, ymax], [zmin, zmax]] to choose it")
         if boundaries is None:
             boundaries = np.array([[-math.inf, math.inf]] * 3)
-        return World(source, boundaries, origin_geo, tuple(volumes), tuple(self.included), tuple(self.warnings))
+        return World(source, boundaries, origin_geo, tuple(volumes), tuple(self.included), tuple(self.warnings),
+                     tuple(self.changes), defaulted)
 
     def volumes(self, f: _Fields, items: list, path: str, base: Path | None) -> list[Volume]:
         volumes: list[Volume] = []
@@ -158,19 +259,48 @@ class _Loader:
 
     def volume(self, f: _Fields, obj: dict, where: str) -> Volume:
         name = f.text(f.key(obj, where, "name"), join_path(where, "name"))
-        prefix = f.text(f.key(obj, where, "prefix"), join_path(where, "prefix"))
+        if "prefix" in obj:
+            prefix = f.text(obj["prefix"], join_path(where, "prefix"))
+        else:
+            prefix = name
+            self.warn(f, join_path(where, "prefix"), f"missing; the original took the prefix of the volume {name!r} "
+                      "already in the running world when this file was added to it as a part (and stopped with an "
+                      f"error when there was none); MAGNA uses the volume's name, {name!r}, to name its frames")
         origin = f.origin(f.key(obj, where, "origin"), join_path(where, "origin"))
         permits = f.text(obj.get("permits", ""), join_path(where, "permits"), allow_empty=True)
         self._unknown(f, obj, where, {"name", "prefix", "origin", "permits", "geometries"})
-        geometries = []
-        for index, item in enumerate(f.list(f.key(obj, where, "geometries"), join_path(where, "geometries"))):
-            geometry = self.geometry(f, f.object(item, join_path(join_path(where, "geometries"), index)),
-                                     join_path(join_path(where, "geometries"), index))
-            if any(g.name == geometry.name for g in geometries):
-                raise WorldError(f.source, join_path(geometry.source_path, "name"),
-                                 f"volume {name!r} already has a geometry named {geometry.name!r}; rename one")
-            geometries.append(geometry)
-        return Volume(name, prefix, origin, permits, tuple(geometries), f.source, where)
+        geometries: list[Geometry] = []
+        items = f.list(f.key(obj, where, "geometries"), join_path(where, "geometries"))
+        for index, item in enumerate(items):
+            at = join_path(join_path(where, "geometries"), index)
+            geometries.append(self.geometry(f, f.object(item, at), at))
+        return Volume(name, prefix, origin, permits, self._distinct(f, name, prefix, geometries), f.source, where)
+
+    def _distinct(self, f: _Fields, volume: str, prefix: str, geometries: list[Geometry]) -> tuple[Geometry, ...]:
+        """Geometries that repeat a name or a prefix of their volume, made distinct (the original let them clash)."""
+        out = list(geometries)
+        for index, geometry in enumerate(out):
+            later = next((g for g in out[index + 1:] if g.name == geometry.name), None)
+            if later is not None:
+                taken = {g.name for g in out}
+                new, n = f"{geometry.name}_{index}", index
+                while new in taken:
+                    n += 1
+                    new = f"{geometry.name}_{n}"
+                out[index] = replace(geometry, name=new)
+                self.warn(f, join_path(geometry.source_path, "name"), f"volume {volume!r} defines a geometry "
+                          f"{geometry.name!r} again at {later.source_path}; the original's look-ups by name found "
+                          f"that later one, and so do MAGNA's; this one is kept as {new!r} (frame {prefix}_{new})")
+        for index, geometry in enumerate(out):
+            earlier = next((g for g in out[:index] if (g.frame_prefix or g.prefix) == geometry.prefix and g.pose_sets),
+                           None)
+            if earlier is not None and geometry.pose_sets:
+                out[index] = replace(geometry, frame_prefix=geometry.name)
+                self.warn(f, join_path(geometry.source_path, "prefix"), f"{geometry.prefix!r} is also the prefix of "
+                          f"{earlier.name!r} in volume {volume!r}, so the original published their pose frames "
+                          f"under the same names; MAGNA names this geometry's pose and obstacle frames "
+                          f"{prefix}_{geometry.name}_pos_... and {prefix}_{geometry.name}_obs_...")
+        return tuple(out)
 
     # --- geometries ---------------------------------------------------------------------------------------------
 
@@ -195,8 +325,17 @@ class _Loader:
         self._unknown(f, obj, where, {"name", "prefix", "shape", "id", "origin", "dimensions", "color", "alpha",
                                       "poses_sets"})
         sets_path = join_path(where, "poses_sets")
-        sets = tuple(self.pose_set(f, f.object(item, join_path(sets_path, i)), join_path(sets_path, i), spec.shape)
-                     for i, item in enumerate(f.list(obj.get("poses_sets", []), sets_path)))
+        sets = []
+        for i, item in enumerate(f.list(obj.get("poses_sets", []), sets_path)):
+            at = join_path(sets_path, i)
+            item = f.object(item, at)
+            if item.get("type") in IGNORED_SET_TYPES:
+                self.warn(f, join_path(at, "type"), f"{item['type']!r}: a zigzag through a grid in the oldest format "
+                          "(geometries with divisions), skipped by the original since pose sets became poses_sets; "
+                          "MAGNA skips it too. For a sweep, use a zigzag pose set over a prism")
+                continue
+            sets.append(self.pose_set(f, item, at, spec.shape))
+        sets = tuple(sets)
         return Geometry(name, prefix, spec, gid, origin, tuple(c / 255.0 for c in color), alpha, sets, where)
 
     # --- pose sets ------------------------------------------------------------------------------------------------
@@ -204,7 +343,7 @@ class _Loader:
     def pose_set(self, f: _Fields, obj: dict, where: str, shape: str) -> PoseSetSpec:
         kind = f.choice(f.key(obj, where, "type"), join_path(where, "type"), POSE_SET_TYPES)
         use = f.choice(obj.get("use", "poses"), join_path(where, "use"), USES)
-        common: dict[str, Any] = {"type": kind, "use": use, "source_path": where}
+        common: dict[str, Any] = {"type": kind, "use": use, "source_path": f.migration.original_path(where)}
         known = {"type", "use", "poses_orientation", "set_orientation", "obstacles_shape", "obstacles_dimensions"}
         if "poses_orientation" in obj:
             common["orientation"] = f.orientation(obj["poses_orientation"], join_path(where, "poses_orientation"))
@@ -308,7 +447,7 @@ class _Loader:
     def _unknown(self, f: _Fields, obj: dict, where: str, known: set[str]) -> None:
         for key in obj:
             if key not in known:
-                self.warnings.append(f"{f.source}: {join_path(where, key)}: unknown field, ignored")
+                self.warn(f, join_path(where, key), "unknown field, ignored")
 
 
 def _shape_error(source: str, where: str, err: ShapeError, rename: dict[str, str] | None = None) -> WorldError:
@@ -320,19 +459,21 @@ def _shape_error(source: str, where: str, err: ShapeError, rename: dict[str, str
 
 
 class _Fields:
-    """Typed reads of one file's JSON, each naming its JSON path on failure."""
+    """Typed reads of one file's JSON, each naming its JSON path (as the file writes it) on failure."""
 
-    def __init__(self, source: str):
+    def __init__(self, source: str, migration: Migration | None = None):
         self.source = source
+        self.migration = migration or Migration(None)
 
     def fail(self, where: str, message: str) -> WorldError:
-        return WorldError(self.source, where, message)
+        return WorldError(self.source, self.migration.original_path(where), message)
 
     def key(self, obj: dict, where: str, key: str) -> Any:
         if not isinstance(obj, dict):
             raise self.fail(where, f"expected an object, got {type(obj).__name__}")
         if key not in obj:
-            raise self.fail(join_path(where, key), "missing; add it (format: DESIGN.md §3)")
+            what = FIELD_HELP.get(key)
+            raise self.fail(join_path(where, key), f"missing; add it: {what}" if what else "missing; add it")
         return obj[key]
 
     def object(self, value: Any, where: str) -> dict:

@@ -1,4 +1,4 @@
-"""The world file as plain typed objects, checked once by `loader` (ros_magna world format, DESIGN.md §3).
+"""The world file as plain typed objects, checked once by `loader` (the ROS-MAGNA world format, DESIGN.md §3).
 
 World -> Volume -> Geometry -> PoseSetSpec. Positions are metres, angles radians,
 colours 0..1 (the files write 0-255). Nothing here is random: `generate` turns
@@ -80,6 +80,7 @@ class Geometry:
     alpha: float
     pose_sets: tuple[PoseSetSpec, ...]
     source_path: str
+    frame_prefix: str = ""  # names its pose and obstacle frames instead of `prefix` (a prefix its volume repeats)
 
 
 @dataclass(frozen=True)
@@ -103,7 +104,9 @@ class World:
     origin_geo: tuple[float, float, float] | None
     volumes: tuple[Volume, ...]
     included: tuple[str, ...] = ()  # nested files, in load order
-    warnings: tuple[str, ...] = field(default=())
+    warnings: tuple[str, ...] = field(default=())  # what the original tolerated, and what MAGNA does with it
+    changes: tuple[str, ...] = field(default=())  # what the migration of an older format changed
+    boundaries_defaulted: bool = False  # the file had no world_boundaries: the box around its geometries
 
     def volume(self, name: str) -> Volume | None:
         return next((v for v in self.volumes if v.name == name), None)

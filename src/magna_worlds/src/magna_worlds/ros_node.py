@@ -148,8 +148,12 @@ class WorldNode:
         part = self.registry.parts[part_id]
         if part.world.origin_geo:  # for nodes that convert to and from WGS84 (go_to_waypoint_geo, real UAVs)
             rospy.set_param("/magna/world/origin_geo", list(part.world.origin_geo))
-        if np.isfinite(part.world.boundaries).all():
+        # A box MAGNA made up for a file without world_boundaries never replaces one that a file gave.
+        if np.isfinite(part.world.boundaries).all() and not (part.world.boundaries_defaulted
+                                                             and rospy.has_param("/magna/world/boundaries")):
             rospy.set_param("/magna/world/boundaries", part.world.boundaries.tolist())
+        for warning in part.warnings:
+            rospy.logwarn("world part %r: %s", part_id, warning)
         self._publish()
         spawned = self._spawn_obstacles(part_id, part)
         self._write_record()
