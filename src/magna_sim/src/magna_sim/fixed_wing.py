@@ -142,9 +142,11 @@ class FixedWingModel:
         heading = vehicle.yaw
         on_ground = position[2] <= MIN_AIRBORNE_HEIGHT
         if setpoint.mode == SetpointMode.OFF or (setpoint.manoeuvre == Manoeuvre.LAND and on_ground):
-            # On the ground: roll straight on, braking to a stop.
+            # On the ground (or parked with nothing to do): roll straight on, braking to a stop.
             st.speed = max(0.0, st.speed - fw.rollout_deceleration * dt)
             st.turn_rate = st.climb = 0.0
+            if on_ground:
+                position[2] = 0.0
         else:
             course, speed, climb, feedforward = self._aim(vehicle, st, fw, setpoint)
             st.speed += (speed - st.speed) * (1.0 - math.exp(-dt / SPEED_TIME_CONSTANT))
