@@ -13,9 +13,11 @@ import threading
 import time
 from collections.abc import Callable
 
+import numpy as np
 import rospy
 from geometry_msgs.msg import Vector3
 from magna_msgs import msg as actions
+from magna_msgs.srv import GetFreeSpacePoseSet
 
 from magna_sm import State
 from magna_sm.simple_action import SimpleActionClient
@@ -28,6 +30,19 @@ ACTION_TYPES = {"take_off": "TakeOff", "land": "Land", "basic_move": "BasicMove"
                 "follow_agent_ad": "FollowAgentAD", "follow_agent_ap": "FollowAgentAP", "save_csv": "SaveCSV",
                 "set_mission": "SetMission"}
 POLL = 0.05  # s of wall time between checks while a state waits
+
+
+def world_poses(definition: list, timeout: float = 30.0) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The (position, quaternion xyzw) poses of a pose definition [volume, geometry, kind, arg], from the
+    world node; ValueError with the world node's reason when it does not resolve."""
+    request = [item if isinstance(item, str) else json.dumps(item) for item in definition]
+    rospy.wait_for_service("/magna/world/get_fspset", timeout=timeout)
+    answer = rospy.ServiceProxy("/magna/world/get_fspset", GetFreeSpacePoseSet)(definition=request)
+    if not answer.success:
+        raise ValueError(f"pose definition {definition}: {answer.message}")
+    return [(np.array([p.position.x, p.position.y, p.position.z]),
+             np.array([p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w]))
+            for p in answer.poses.poses]
 
 
 def _param(parameters, name: str, default=None):
@@ -132,12 +147,18 @@ class RosStateFactory:
                                      duration=float(_param(p, "duration", 0.0) or 0.0))
 
     def _follow_path(self, uav_id, p):
+        utm = getattr(self.services, "utm", None)
         if _param(p, "from_utm", False):
-            raise ValueError("follow_path from a UTM flight plan: no UTM flight-plan source in this ground station")
-        waypoints = self._resolve_path(p)
-        if not waypoints:
+            if utm is None:
+                raise ValueError("follow_path from utm: this ground station runs no UTM")
+            positions = list(utm.path_for(uav_id))
+        else:
+            positions = [position for position, _ in self._resolve_path(p)]
+            if positions and utm is not None:
+                utm.remember(uav_id, positions)
+        if not positions:
             raise ValueError("follow_path: the path resolved to no waypoints")
-        return actions.FollowPathGoal(path=[pose_stamped(position) for position, _ in waypoints],
+        return actions.FollowPathGoal(path=[pose_stamped(position) for position in positions],
                                       smooth_path_mode=int(_param(p, "smooth_path_mode", 0) or 0),
                                       dynamic=_param(p, "dynamic", "velocity") or "velocity",
                                       duration=float(_param(p, "duration", 0.0) or 0.0))

@@ -27,7 +27,6 @@ from magna_msgs.srv import (
     DeleteModel,
     DeleteWorldPart,
     Die,
-    GetFreeSpacePoseSet,
     GroundStationCommand,
     GroundStationCommandResponse,
     SimulationTermination,
@@ -42,11 +41,13 @@ from uav_abstraction_layer.msg import State as UalState
 
 from magna_gs.bag_recorder import BagRecorder, mission_topics
 from magna_gs.commands import CommandPlan, CommandRefused, Param, UavStatus, plan_command
-from magna_gs.factory import ActionClients, RosStateFactory, wait_sim_seconds
+from magna_gs.factory import ActionClients, RosStateFactory, wait_sim_seconds, world_poses
 from magna_gs.mission.build import build_machine
 from magna_gs.mission.loader import MissionError, load_mission
 from magna_gs.processes import end_process_group
 from magna_gs.sim_pause import SimulationPause
+from magna_gs.utm import choose_plan, mission_uses_utm
+from magna_gs.utm_client import UtmLink
 from magna_sm.introspection import IntrospectionServer
 from magna_uav.files import write_atomically
 
@@ -74,6 +75,8 @@ Private parameters (defaults):
   ~control_rate (10.0)       control rate of the UAV managers it starts
   ~manager_output (log)      where the managers' output goes: log or screen
   ~button_timeout (0)        s of sim time after which a wait for the operator's button goes on; 0: never
+  ~utm_plan ("")             a UTM plan file (JSON); with it, or when the mission flies "from utm", the
+                             ground station starts the UTM node (rosrun magna_gs utm)
 """
 
 SUCCESS_OUTCOMES = ("completed", "succeeded", "success", "mission_completed", "finished")
@@ -99,6 +102,8 @@ class GroundStationServices:
         self.configs = {c.id: c for c in mission.agents}
         self.sim_pause = SimulationPause()
         self.bag = bag
+        self.utm: UtmLink | None = None  # the UTM's flight plans, when the mission flies them
+        self.utm_process: subprocess.Popen | None = None
 
     # --- helpers the states use ------------------------------------------------------------
     def action_client(self, uav_id: int, action: str):
@@ -114,14 +119,7 @@ class GroundStationServices:
         return True
 
     def resolve_poses(self, definition: list) -> list[tuple[np.ndarray, np.ndarray]]:
-        request = [item if isinstance(item, str) else json.dumps(item) for item in definition]
-        rospy.wait_for_service("/magna/world/get_fspset", timeout=30.0)
-        answer = rospy.ServiceProxy("/magna/world/get_fspset", GetFreeSpacePoseSet)(definition=request)
-        if not answer.success:
-            raise ValueError(f"pose definition {definition}: {answer.message}")
-        return [(np.array([p.position.x, p.position.y, p.position.z]),
-                 np.array([p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w]))
-                for p in answer.poses.poses]
+        return world_poses(definition)
 
     def csv_path(self, uav_id: int) -> Path | str:
         return self.data_dir / f"uav_{uav_id}.csv" if self.data_dir else ""
@@ -238,6 +236,20 @@ class GroundStationServices:
                                                             "stderr": subprocess.DEVNULL}
         self.managers[uav_id] = subprocess.Popen(command, start_new_session=True, **quiet)
 
+    def start_utm(self, plan_file: str) -> None:
+        """The UTM node for this mission, and the link that hears its plans."""
+        self.utm = UtmLink([c.id for c in self.mission.agents])
+        command = ["rosrun", "magna_gs", "utm", "__name:=utm", f"_mission_file:={self.mission_file}",
+                   f"_plan_file:={plan_file}"]
+        quiet = {} if self.manager_output == "screen" else {"stdout": subprocess.DEVNULL,
+                                                            "stderr": subprocess.DEVNULL}
+        self.utm_process = subprocess.Popen(command, start_new_session=True, **quiet)
+
+    def stop_utm(self) -> None:
+        if self.utm_process is not None:
+            end_process_group(self.utm_process)
+            self.utm_process = None
+
     def algorithm_control(self, ids, name, action, params, values, text_value: str = "") -> bool:
         self.sim_pause.run()  # a service call: it needs no time, only managers that are not held
         ok = True
@@ -324,6 +336,7 @@ class GroundStation:
                                               float(rospy.get_param("~control_rate", 10.0)),
                                               rospy.get_param("~manager_output", "log"),
                                               float(rospy.get_param("~button_timeout", 0.0)), self.bag)
+        self._start_utm()
         self.machine = build_machine(self.mission, RosStateFactory(self.services))
         self.introspection = IntrospectionServer("mission", self.machine)
         self.statuses: dict[int, dict] = {c.id: {} for c in self.mission.agents}
@@ -341,6 +354,19 @@ class GroundStation:
             rospy.Service("/magna/gs/stop", Trigger, self._on_stop),
             rospy.Service("/magna/gs/continue", Trigger, self._on_continue),
         ]
+
+    def _start_utm(self) -> None:
+        """Start the UTM when the run names a plan or the mission flies UTM plans; a bad plan stops us here."""
+        plan_file = rospy.get_param("~utm_plan", "") or self.hyper.get("utm_plan", "")
+        plan_file = str(Path(plan_file).expanduser().resolve()) if plan_file else ""
+        data = json.loads(self.mission_file.read_text())
+        if not plan_file and not mission_uses_utm(data):
+            return
+        plan, warning = choose_plan(plan_file, data, self.mission_file)  # UtmPlanError: the node exits with 2
+        if warning:
+            rospy.logwarn(warning)
+        rospy.loginfo(f"UTM: {len(plan.issues)} flight plans from {plan.source}")
+        self.services.start_utm(plan_file)
 
     # --- what the ground station hears -----------------------------------------------------
     def _on_pose(self, msg, uav_id):
@@ -447,7 +473,8 @@ class GroundStation:
             steps.append(("copying the mission", lambda: write_atomically(
                 self.data_dir / "mission.json", lambda f: f.write(self.mission_file.read_text()), overwrite=True)))
         steps += [("stopping the UAV managers", services.stop_managers), ("deleting the UAVs", services.delete_uavs),
-                  ("deleting the world", services.delete_world), ("closing the bag", self._close_bag)]
+                  ("deleting the world", services.delete_world), ("stopping the UTM", services.stop_utm),
+                  ("closing the bag", self._close_bag)]
         for what, step in steps:  # every step runs, and the Master hears of the end whatever fails
             try:
                 step()

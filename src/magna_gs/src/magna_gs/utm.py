@@ -411,3 +411,24 @@ class Utm:
     def snapshot(self) -> dict:
         """What the ground station needs: every issued plan, by UAV id."""
         return {"plans": {str(i): p.as_json() for i, p in sorted(self.issued.items())}}
+
+
+def choose_plan(plan_file: str | Path | None, mission_data, mission_file: str | Path) -> tuple[UtmPlan, str]:
+    """The plan of a simulation and a warning ("" when there is nothing to say): the file given (utm_plan),
+    else the mission's top-level "UTM", else no plan at all, said once when the mission flies UTM plans."""
+    if plan_file:
+        found = load_plan(plan_file)
+        if isinstance(mission_data, dict) and "UTM" in mission_data:
+            return found, (f"{mission_file}: UTM: replaced by the plan given to the run ({plan_file}); "
+                           f"the mission's own plan is not flown")
+        return found, ""
+    found = mission_plan(mission_data, mission_file)
+    if found is not None:
+        return found, ""
+    warning = ""
+    if mission_uses_utm(mission_data):
+        warning = (f"{mission_file}: the mission flies UTM flight plans (\"from utm\" or utm_new_flightplan) but "
+                   f"names no plan: the UTM issues none, checks the paths the UAVs fly for conflicts, and a "
+                   f"follow_path \"from utm\" flies the UAV's last path again; give a plan file with "
+                   f"utm_plan:=FILE (magna run --utm-plan FILE)")
+    return UtmPlan("no plan"), warning

@@ -24,6 +24,7 @@ from magna_uav.roles import FLY, FLYING_AUTO, HOVER, LAND, TAKE_OFF, WAIT, WAYPO
 
 PREEMPTED = "preempted"
 ABORTED = "aborted"
+UTM_NEW_FLIGHTPLAN = "utm_new_flightplan"
 
 # What ends a role when it newly appears, by priority, as the evaluator orders its outcomes.
 _TROUBLES = (("collision", "collision"), ("out_of_bounds", ABORTED), ("GS_critical_event", "GS_critical_event"),
@@ -88,8 +89,11 @@ class UavManager:
         self._sent_waypoint: tuple[np.ndarray, float] | None = None  # (target, sim time sent)
 
     def run_role(self, role: Role, preempt_requested: Callable[[], bool] = lambda: False,
-                 feedback: Callable[[RoleStep], None] = lambda step: None) -> RoleResult:
-        """Fly `role` until it ends, the evaluator stops it, or the ground station preempts it."""
+                 feedback: Callable[[RoleStep], None] = lambda step: None,
+                 superseded: Callable[[], bool] = lambda: False) -> RoleResult:
+        """Fly `role` until it ends, the evaluator stops it, or the ground station preempts it.
+
+        `superseded()` true ends it with utm_new_flightplan: the UTM changed the plan it flies."""
         self.role_name, self._hold, self._sent_waypoint = role.name, None, None
         steps = 0
         standing: set[str] | None = None  # conditions present when the role started
@@ -98,6 +102,9 @@ class UavManager:
                 if preempt_requested():
                     self._hover()
                     return RoleResult(PREEMPTED, f"{role.name} preempted by the ground station", steps)
+                if superseded():
+                    self._hover()
+                    return RoleResult(UTM_NEW_FLIGHTPLAN, "the UTM issued a new flight plan", steps)
                 now = self.clock.now()
                 with self.lock:
                     evaluation = self.evaluator.step(self.view, self.gs_critical_event)

@@ -51,7 +51,9 @@ Services: /magna/uav_{id}/algorithm_control (AlgorithmControl), /magna/uav_{id}/
 Topics:   /magna/uav_{id}/path/raw, /path/smoothed (nav_msgs/Path), /goal (PoseStamped);
           /magna/uav_{id}/navigation (NavigationStep): every recorded control step, as its CSV row
           (a new subscriber first gets the steps sent so far);
-          listens to /magna/gs/critical_event (std_msgs/String; empty clears it)
+          listens to /magna/gs/critical_event (std_msgs/String; empty clears it) and
+          /magna/uav_{id}/utm_new_flightplan (std_msgs/Float64, sim time T of a UTM plan change:
+          a follow_path whose goal was sent at or before T ends with utm_new_flightplan)
 Reports:  /magna/gs/state_actualization (StateActualization) when the ground station serves it
 Machine:  /magna/sm/uav_{id}/structure|status (magna_sm introspection)
 
@@ -178,6 +180,7 @@ class Order:
     goal: object
     server: SimpleActionServer | None = None
     preempt: threading.Event = field(default_factory=threading.Event)
+    sent_at: float = float("inf")  # sim time the ground station sent the goal (its goal id's stamp)
     done: threading.Event = field(default_factory=threading.Event)
     result: RoleResult | None = None
 
@@ -328,11 +331,13 @@ class UavManagerNode:
         self.reporter = Reporter(self.uav_id)
         self.written: set[Path] = set()  # CSVs this node wrote: save_csv may rewrite them
         self._critical_seen = ""
+        self._plan_changed_at = float("-inf")  # sim time of the UTM's latest plan change for this UAV
 
         self.raw_path = rospy.Publisher(ns + "path/raw", PathMsg, queue_size=1, latch=True)
         self.smoothed_path = rospy.Publisher(ns + "path/smoothed", PathMsg, queue_size=1, latch=True)
         self.goal_pub = rospy.Publisher(ns + "goal", PoseStamped, queue_size=1, latch=True)
         rospy.Subscriber(CRITICAL_TOPIC, String, self._on_critical_event, queue_size=10)
+        rospy.Subscriber(ns + "utm_new_flightplan", Float64, self._on_new_flightplan, queue_size=10)
         self.services = [rospy.Service(ns + "algorithm_control", AlgorithmControl, self._on_algorithm_control),
                          rospy.Service(ns + "die", Die, self._on_die)]
         self.servers = {}
@@ -394,7 +399,8 @@ class UavManagerNode:
             self.raw_path.publish(path_msg(role.waypoints, stamp=now))
             self.smoothed_path.publish(path_msg(role.smoothed, stamp=now))
         try:
-            result = self.manager.run_role(role, order.preempt_requested, lambda step: self._feedback(order, step))
+            result = self.manager.run_role(role, order.preempt_requested, lambda step: self._feedback(order, step),
+                                           lambda: action == "follow_path" and order.sent_at <= self._plan_changed_at)
         except rospy.ROSInterruptException:
             result = RoleResult(PREEMPTED, "the node is shutting down")
         except Exception as error:  # a role must end with an outcome, never leave the server hanging
@@ -435,6 +441,9 @@ class UavManagerNode:
                 outcome, message = self._save_csv(goal.path)
             else:
                 order = Order(action, goal, server)
+                status = server.current_goal_status()
+                if status is not None and not status.goal_id.stamp.is_zero():
+                    order.sent_at = status.goal_id.stamp.to_sec()
                 self.desk.submit(order)
                 while not order.done.wait(0.1):
                     if rospy.is_shutdown():
@@ -484,6 +493,9 @@ class UavManagerNode:
                 return DieResponse(success=False, message=message)
         self.desk.die()
         return DieResponse(success=True, message=f"UAV {self.uav_id} manager: {message}; shutting down")
+
+    def _on_new_flightplan(self, msg: Float64) -> None:
+        self._plan_changed_at = max(self._plan_changed_at, msg.data)
 
     def _on_critical_event(self, msg: String) -> None:
         self._critical_seen = msg.data
