@@ -153,10 +153,11 @@ def _read_json(path: Path, source: str) -> Any:
 
 
 def default_boundaries(volumes: Iterable[Volume], margin: float = BOUNDARY_MARGIN) -> np.ndarray:
-    """The box around every geometry (and every volume origin) in map, `margin` m larger on each side."""
+    """The box around every geometry (a volume without any: its origin) in map, `margin` m larger on each side."""
     points = []
     for volume in volumes:
-        points.append(volume.origin.translation[None, :])
+        if not volume.geometries:
+            points.append(volume.origin.translation[None, :])
         for geometry in volume.geometries:
             low, high = half_extents(geometry.spec)
             corners = np.array([[x, y, z] for x in (low[0], high[0]) for y in (low[1], high[1])
@@ -207,8 +208,13 @@ class _Loader:
                                  f"degrees, got {lat}, {lon}")
             origin_geo = (lat, lon, alt)
         self._unknown(f, scenario, "scenario", {"world_boundaries", "origin_geo", "volumes"})
-        volumes = self.volumes(f, f.list(f.key(scenario, "scenario", "volumes"), "scenario.volumes"),
-                               "scenario.volumes", base)
+        try:
+            volumes = self.volumes(f, f.list(f.key(scenario, "scenario", "volumes"), "scenario.volumes"),
+                                   "scenario.volumes", base)
+        except WorldError as err:  # name the path as the file writes it, before any migration renamed a key
+            if err.source != source or migration.original_path(err.path) == err.path:
+                raise
+            raise WorldError(source, migration.original_path(err.path), err.message) from None
         names: dict[str, str] = {}
         for volume in volumes:
             if volume.name in names:
@@ -287,10 +293,13 @@ class _Loader:
                 while new in taken:
                     n += 1
                     new = f"{geometry.name}_{n}"
-                out[index] = replace(geometry, name=new)
+                same_prefix = later.prefix == geometry.prefix and bool(geometry.pose_sets)
+                out[index] = replace(geometry, name=new, frame_prefix=new if same_prefix else geometry.frame_prefix)
+                frames = f"frames {prefix}_{new} and {prefix}_{new}_pos_..." if same_prefix else f"frame {prefix}_{new}"
                 self.warn(f, join_path(geometry.source_path, "name"), f"volume {volume!r} defines a geometry "
-                          f"{geometry.name!r} again at {later.source_path}; the original's look-ups by name found "
-                          f"that later one, and so do MAGNA's; this one is kept as {new!r} (frame {prefix}_{new})")
+                          f"{geometry.name!r} again at {f.migration.original_path(later.source_path)}; the original's "
+                          f"look-ups by name found that later one, and so do MAGNA's; this one is kept as {new!r} "
+                          f"({frames})")
         for index, geometry in enumerate(out):
             earlier = next((g for g in out[:index] if (g.frame_prefix or g.prefix) == geometry.prefix and g.pose_sets),
                            None)
@@ -330,9 +339,15 @@ class _Loader:
             at = join_path(sets_path, i)
             item = f.object(item, at)
             if item.get("type") in IGNORED_SET_TYPES:
-                self.warn(f, join_path(at, "type"), f"{item['type']!r}: a zigzag through a grid in the oldest format "
-                          "(geometries with divisions), skipped by the original since pose sets became poses_sets; "
-                          "MAGNA skips it too. For a sweep, use a zigzag pose set over a prism")
+                if f.migration.original_path(sets_path) != sets_path:  # written as divisions: the oldest format
+                    what = ("in this format (divisions) the original laid a zigzag through a grid of `dimensions` "
+                            "cells of the geometry, flown as its path; MAGNA has no such set and skips it, so a "
+                            "mission asking for this geometry's path is refused")
+                else:
+                    what = ("the original skipped it without a word (the grid zigzag of the older format, dropped "
+                            "when divisions became poses_sets); MAGNA skips it too")
+                self.warn(f, join_path(at, "type"), f"{item['type']!r}: {what}. For a sweep, use a zigzag pose set "
+                          "over a prism")
                 continue
             sets.append(self.pose_set(f, item, at, spec.shape))
         sets = tuple(sets)
