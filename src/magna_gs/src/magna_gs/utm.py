@@ -430,5 +430,5 @@ def choose_plan(plan_file: str | Path | None, mission_data, mission_file: str | 
         warning = (f"{mission_file}: the mission flies UTM flight plans (\"from utm\" or utm_new_flightplan) but "
                    f"names no plan: the UTM issues none, checks the paths the UAVs fly for conflicts, and a "
                    f"follow_path \"from utm\" flies the UAV's last path again; give a plan file with "
-                   f"utm_plan:=FILE (magna run --utm-plan FILE)")
+                   f"utm_plan:=FILE (an argument of simulation.launch)")
     return UtmPlan("no plan"), warning
