@@ -141,7 +141,7 @@ class WorldNodeTest(unittest.TestCase):
         self.assertIn("exists already", again.message)
         bad = self.add(id="bad", world="", subworld="", definition_json='[{"name": "V"}]')
         self.assertFalse(bad.success)
-        self.assertIn("[0].prefix: missing", bad.message)
+        self.assertIn("[0].origin: missing", bad.message)
         gone = self.delete(id="extra")
         self.assertTrue(gone.success, gone.message)
         self.assertIn("1 obstacle(s)", gone.message)
