@@ -185,5 +185,7 @@ def test_a_mission_names_or_holds_its_plan(tmp_path):
 
 def test_which_missions_use_the_utm():
     assert mission_uses_utm({"State_Machine": [{"parameters": {"path": "from utm"}}]})
-    assert mission_uses_utm({"State_Machine": [{"outcomes": {"utm_new_flightplan": "x"}}]})
+    assert mission_uses_utm({"UTM": {"flight_plans": []}, "State_Machine": []})
+    # mapping the outcome alone is no use of the UTM: without a plan it never comes
+    assert not mission_uses_utm({"State_Machine": [{"outcomes": {"utm_new_flightplan": "x"}}]})
     assert not mission_uses_utm({"State_Machine": [{"parameters": {"path": [{"definition": ["a", "b", "c", 1]}]}}]})

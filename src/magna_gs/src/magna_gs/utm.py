@@ -38,7 +38,6 @@ DEFAULT_SPEED = 2.0  # m/s between waypoints without a planned time
 TOP_KEYS = ("flight_plans", "conflict", "speed")
 ENTRY_KEYS = ("ids", "at", "waypoints")
 FROM_UTM = ("from utm", "from_utm")
-NEW_FLIGHTPLAN = "utm_new_flightplan"
 _EPS = 1e-12
 
 FORMAT_HINT = ('a UTM plan is {"flight_plans": [{"ids": [1], "at": 0.0, "waypoints": [[x, y, z], ...]}, ...], '
@@ -185,10 +184,10 @@ def mission_plan(mission_data, mission_file: str | Path) -> UtmPlan | None:
 
 
 def mission_uses_utm(mission_data) -> bool:
-    """Whether a mission (raw JSON) flies UTM plans: a "from utm" path, a utm_new_flightplan transition,
-    or a "UTM" section."""
+    """Whether a mission (raw JSON) flies UTM plans: a "from utm" path or a "UTM" section. A transition on
+    utm_new_flightplan alone does not count: many missions map that outcome, and without a plan it never comes."""
     if isinstance(mission_data, dict):
-        if "UTM" in mission_data or NEW_FLIGHTPLAN in mission_data:
+        if "UTM" in mission_data:
             return True
         if isinstance(mission_data.get("path"), str) and mission_data["path"].strip().lower() in FROM_UTM:
             return True
@@ -427,7 +426,7 @@ def choose_plan(plan_file: str | Path | None, mission_data, mission_file: str | 
         return found, ""
     warning = ""
     if mission_uses_utm(mission_data):
-        warning = (f"{mission_file}: the mission flies UTM flight plans (\"from utm\" or utm_new_flightplan) but "
+        warning = (f"{mission_file}: the mission flies UTM flight plans (a follow_path \"from utm\") but "
                    f"names no plan: the UTM issues none, checks the paths the UAVs fly for conflicts, and a "
                    f"follow_path \"from utm\" flies the UAV's last path again; give a plan file with "
                    f"utm_plan:=FILE (an argument of simulation.launch)")
