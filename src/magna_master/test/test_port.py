@@ -209,3 +209,35 @@ def test_within_a_family_the_world_named_in_the_missions_name_is_preferred(tree)
     _write(tree, "Missions/Lab/1UAV_cropfield_survey.json", _mission([("Area", "Line")]))
     found = _by_label(port.port_folder(tree))
     assert found["Lab/1UAV_cropfield_survey"].world.label == "Lab/Crop_Field"
+
+
+def test_what_the_original_tolerated_warns_and_strict_refuses_it(tree):
+    unbounded = _world(GROUND)
+    del unbounded["scenario"]["world_boundaries"]  # the original did without; MAGNA warns and bounds it itself
+    _write(tree, "Worlds/Lab/Small.json", unbounded)
+    small = _by_label(port.port_folder(tree))["Lab/Small"]
+    assert small.loads and any("world_boundaries" in w for w in small.warnings)
+    strict = port.port_folder(tree, strict=True)
+    small = _by_label(strict)["Lab/Small"]
+    assert not small.loads and any("world_boundaries" in p for p in small.problems) and strict.refused
+
+
+def test_magna_run_strict_refuses_a_tolerated_world_before_anything_starts(tree, tmp_path, capsys):
+    unbounded = _world(GROUND)
+    del unbounded["scenario"]["world_boundaries"]
+    world = _write(tree, "Worlds/Lab/Small.json", unbounded)
+    mission = tree / "Missions/Lab/Home.json"
+    data_root = tmp_path / "data"
+    argv = ["run", "--world", str(world), "--mission", str(mission), "--data-root", str(data_root), "--strict"]
+    assert main(argv) == 2
+    error = capsys.readouterr().err
+    assert "Small.json" in error and "world_boundaries" in error
+    assert not data_root.exists()  # nothing started, nothing written
+
+
+def test_magna_run_refuses_a_mission_whose_places_the_world_does_not_have(tree, tmp_path, capsys):
+    world, mission = tree / "Worlds/Lab/Small.json", tree / "Missions/Lab/Inspection.json"  # Small has no Area
+    assert main(["run", "--world", str(world), "--mission", str(mission), "--data-root", str(tmp_path / "d")]) == 2
+    error = capsys.readouterr().err
+    assert "Inspection.json: State_Machine[2].parameters.path[0].definition" in error and "Area" in error
+    assert not (tmp_path / "d").exists()

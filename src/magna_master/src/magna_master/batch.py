@@ -155,8 +155,10 @@ def _as_file(spec: str) -> Path | None:
     return path if spec.endswith(".json") and path.is_file() else None
 
 
-def resolve_inputs(world_spec: str, mission_spec: str, search_dirs: Sequence[Path] = (), check: bool = True) -> Inputs:
-    """Find and (with `check`) load the world and the mission; BatchError names what was searched.
+def resolve_inputs(world_spec: str, mission_spec: str, search_dirs: Sequence[Path] = (), check: bool = True,
+                   strict: bool = False) -> Inputs:
+    """Find and (with `check`) load the world and the mission (`strict`: refuse what only warns); BatchError names
+    what was searched.
 
     Each spec is NAME/SUBNAME (looked up) or the path of a .json file (<world>/<subworld>.json).
     """
@@ -185,7 +187,7 @@ def resolve_inputs(world_spec: str, mission_spec: str, search_dirs: Sequence[Pat
         mission_file = find_mission(mission, submission, search_dirs)
     inputs = Inputs(world, subworld, mission, submission, world_file.resolve(), mission_file.resolve())
     if check:
-        check_inputs(inputs, wroots)
+        check_inputs(inputs, wroots, strict)
     return inputs
 
 
@@ -221,27 +223,30 @@ def find_mission(mission: str, submission: str, search_dirs: Sequence[Path] = ()
     return found
 
 
-def check_inputs(inputs: Inputs, world_search: Sequence[Path]) -> None:
-    """Load the world (magna_worlds) and read the mission JSON, so bad files stop the batch before it starts."""
+def check_inputs(inputs: Inputs, world_search: Sequence[Path], strict: bool = False) -> None:
+    """Load the world (magna_worlds) and the mission, and check the mission in the world, so bad files stop the
+    batch before it starts. With `strict`, what would be a warning (what the original tolerated) stops it too."""
     from magna_worlds.errors import WorldError
-    from magna_worlds.loader import load_world
+    from magna_worlds.loader import load_world_checked
 
     try:
-        load_world(inputs.world_file, search_path=world_search)
+        world = load_world_checked(inputs.world_file, search_path=world_search, strict=strict)
     except WorldError as err:
         raise BatchError(" ".join(str(err).split())) from None
     try:
         from magna_gs.mission.loader import load_mission
         from magna_gs.mission.model import MissionError
+        from magna_gs.mission.world_check import check_against_world
     except ImportError:
         load_mission = None
     if load_mission is not None:  # the ground station's own checks: what it would refuse, refused now
         try:
-            load_mission(inputs.mission_file)
+            loaded = load_mission(inputs.mission_file, strict=strict)
         except MissionError as err:
-            problems = err.problems
-            more = f" (and {len(problems) - 1} more problem(s))" if len(problems) > 1 else ""
-            raise BatchError(" ".join(problems[0].split()) + more) from None
+            raise BatchError(_first_of(err.problems)) from None
+        problems = check_against_world(loaded.mission, world.resolved, search_path=world_search)
+        if problems:
+            raise BatchError(_first_of(problems) + f"; in the world {inputs.world_file}") from None
         return
     try:
         data = json.loads(inputs.mission_file.read_text())
@@ -251,6 +256,11 @@ def check_inputs(inputs: Inputs, world_search: Sequence[Path]) -> None:
             "Agents_Config" in data or "UAVs_Config" in data):
         raise BatchError(f"{inputs.mission_file}: not a mission: expected an object with Agents_Config (or "
                          "UAVs_Config), a list of agents, and State_Machine, a list of states")
+
+
+def _first_of(problems: Sequence[str]) -> str:
+    more = f" (and {len(problems) - 1} more problem(s))" if len(problems) > 1 else ""
+    return " ".join(problems[0].split()) + more
 
 
 # --- configuration and results --------------------------------------------------------------------------------

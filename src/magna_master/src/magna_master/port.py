@@ -143,28 +143,21 @@ class _World:
 
 
 def check_world(path: Path, search_path: Iterable[Path], strict: bool = False, seed: int = 0) -> _World:
-    from magna_worlds import loader
     from magna_worlds.errors import WorldError
-    from magna_worlds.generate import resolve_world
+    from magna_worlds.loader import load_world_checked
 
-    load_world_checked = getattr(loader, "load_world_checked", None) or (  # TEMPORARY until the worlds API lands
-        lambda p, search_path: type("C", (), {"world": loader.load_world(p, search_path), "changes": [],
-                                              "warnings": []})())
     report = FileReport(Path(path), _label(Path(path)), "world")
     try:
-        checked = load_world_checked(path, search_path=list(search_path))
-        report.changes, report.warnings = list(checked.changes), list(checked.warnings)
-        resolved = resolve_world(checked.world, seed)
+        checked = load_world_checked(path, search_path=list(search_path), strict=strict, seed=seed)
     except WorldError as error:
         report.problems.append(" ".join(str(error).split()))
         return _World(report)
-    if strict and report.warnings:
-        report.problems += [f"{w} (refused with --strict)" for w in report.warnings]
+    report.changes, report.warnings = list(checked.changes), list(checked.warnings)
     places = set()
     for volume in checked.world.volumes:
         places.add((volume.name, "volume"))
         places |= {(volume.name, geometry.name) for geometry in volume.geometries}
-    return _World(report, checked.world, resolved, places)
+    return _World(report, checked.world, checked.resolved, places)
 
 
 @dataclass
@@ -181,13 +174,11 @@ def check_mission(path: Path, strict: bool = False) -> _Mission:
 
     report = FileReport(Path(path), _label(Path(path)), "mission")
     try:
-        loaded = load_mission(path)
+        loaded = load_mission(path, strict=strict)
     except MissionError as error:
         report.problems += [" ".join(p.split()) for p in error.problems]
         return _Mission(report)
     report.changes, report.warnings = list(loaded.changes), list(loaded.warnings)
-    if strict and report.warnings:
-        report.problems += [f"{w} (refused with --strict)" for w in report.warnings]
     places = {(d.volume, d.geometry) for d in pose_definitions(loaded.mission)}
     return _Mission(report, loaded, places)
 

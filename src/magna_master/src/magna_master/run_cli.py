@@ -2,7 +2,7 @@
 
     magna run --world Gym/1Obs_Central_Cylinder --mission Gym/2UAVs_2paths_Central_Cylinder --n-iter 5 \\
         [--name NAME] [--dataset N] [--rtf max] [--seed S] [--no-bag] [--no-data] [--rviz] [--search-path DIR ...] \\
-        [--data-root DIR] [--append|--overwrite|--skip-save] [--time-limit SECONDS] [--launch-command CMD]
+        [--data-root DIR] [--append|--overwrite|--skip-save] [--time-limit SECONDS] [--launch-command CMD] [--strict]
 
 Exit status: 0 when every simulation ran to a mission outcome (a failed mission is data, not an
 error), 1 when one or more crashed or could not start, 2 for bad input (nothing started or
@@ -82,6 +82,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                           help="if the dataset has simulations: delete and rewrite the ones run again")
     conflict.add_argument("--skip-save", dest="policy", action="store_const", const=storage.SKIP_SAVE,
                           help="if the dataset has simulations: run without saving anything")
+    parser.add_argument("--strict", action="store_true",
+                        help="refuse the world or mission for what would only be a warning (what the original "
+                             "ROS-MAGNA tolerated); for authors of new files")
     parser.add_argument("--button-timeout", type=float, default=10.0, metavar="SECONDS",
                         help="a mission's wait for the operator's button goes on after this many simulated "
                              "seconds, since nobody presses it in a batch (default 10; 0: wait for "
@@ -104,7 +107,7 @@ def build_config(args):
     """BatchConfig from parsed arguments; BatchError on bad input."""
     from magna_master.batch import DEFAULT_LAUNCH_COMMAND, BatchConfig, BatchError, resolve_inputs
 
-    inputs = resolve_inputs(args.world, args.mission, args.search_path)
+    inputs = resolve_inputs(args.world, args.mission, args.search_path, strict=args.strict)
     command = DEFAULT_LAUNCH_COMMAND
     if args.launch_command.strip():
         try:
