@@ -189,3 +189,22 @@ def test_which_missions_use_the_utm():
     # mapping the outcome alone is no use of the UTM: without a plan it never comes
     assert not mission_uses_utm({"State_Machine": [{"outcomes": {"utm_new_flightplan": "x"}}]})
     assert not mission_uses_utm({"State_Machine": [{"parameters": {"path": [{"definition": ["a", "b", "c", 1]}]}}]})
+
+
+def test_which_plan_a_simulation_flies(tmp_path):
+    from magna_gs.utm import choose_plan
+
+    plan_file = tmp_path / "plan.json"
+    plan_file.write_text(json.dumps({"flight_plans": [{"ids": [2], "waypoints": [[0, 0, 1]]}]}))
+    flies = {"State_Machine": [{"parameters": {"path": "from utm"}}]}
+    given, warning = choose_plan(plan_file, flies, "m.json")
+    assert given.issues[0].ids == (2,) and warning == ""
+    own = {**flies, "UTM": {"flight_plans": []}}
+    given, warning = choose_plan(plan_file, own, "m.json")
+    assert given.issues[0].ids == (2,) and "m.json: UTM: replaced by the plan given to the run" in warning
+    given, warning = choose_plan("", own, "m.json")
+    assert given.issues == () and warning == ""
+    given, warning = choose_plan("", flies, "m.json")
+    assert given.issues == () and warning.startswith("m.json: the mission flies UTM flight plans")
+    assert "utm_plan:=FILE" in warning
+    assert choose_plan("", {"State_Machine": []}, "m.json")[1] == ""
