@@ -210,6 +210,9 @@ def test_hyperparameters_and_the_default_launch_command(batch_inputs):
     no_data = storage.StoragePlan(None, [1], reason="off")
     argv = launch_command(config, 1, None, no_data)
     assert "data_dir:=" in argv and "save_data:=false" in argv and "bag:=false" in argv
+    assert not any(a.startswith("utm_plan:=") for a in argv)
+    with_plan = BatchConfig(inputs=batch_inputs, utm_plan=Path("/plans/gauss.json"))
+    assert launch_command(with_plan, 1, None, no_data)[-1] == "utm_plan:=/plans/gauss.json"
 
 
 def fake_supervisor_batch(config, script):

@@ -241,3 +241,14 @@ def test_magna_run_refuses_a_mission_whose_places_the_world_does_not_have(tree, 
     error = capsys.readouterr().err
     assert "Inspection.json: State_Machine[2].parameters.path[0].definition" in error and "Area" in error
     assert not (tmp_path / "d").exists()
+
+
+def test_magna_run_refuses_a_bad_utm_plan_before_anything_starts(tree, tmp_path, capsys):
+    plan = _write(tmp_path, "plan.json", {"flight_plans": [{"ids": [1], "at": -5, "waypoints": [[0, 0, 2]]}]})
+    world, mission = tree / "Worlds/Lab/Small.json", tree / "Missions/Lab/Home.json"
+    argv = ["run", "--world", str(world), "--mission", str(mission), "--data-root", str(tmp_path / "d"),
+            "--utm-plan", str(plan)]
+    assert main(argv) == 2
+    error = capsys.readouterr().err
+    assert "--utm-plan" in error and "plan.json: flight_plans[0].at" in error
+    assert not (tmp_path / "d").exists()

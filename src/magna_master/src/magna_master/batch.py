@@ -62,7 +62,7 @@ DEFAULT_LAUNCH_COMMAND: tuple[str, ...] = (
     "output:={output}", "button_timeout:={button_timeout}",
 )
 PLACEHOLDERS = ("mission_file", "world", "subworld", "worlds_path", "data_dir", "rtf", "seed", "bag", "save_data",
-                "output", "mission", "submission", "n_simulation", "button_timeout", "rviz")
+                "output", "mission", "submission", "n_simulation", "button_timeout", "rviz", "utm_plan")
 
 
 class BatchError(RuntimeError):
@@ -302,6 +302,7 @@ class BatchConfig:
     launch_command: Sequence[str] = DEFAULT_LAUNCH_COMMAND
     output: str = "log"  # roslaunch output of the nodes: log or screen
     rviz: bool = False  # rviz on the display for each simulation (magna_viz rviz.launch); needs DISPLAY
+    utm_plan: Path | None = None  # a UTM flight-plan file (magna_gs.utm format) the UTM node issues
 
     @property
     def key(self) -> storage.StorageKey:
@@ -406,6 +407,7 @@ def launch_command(config: BatchConfig, m: int, data_dir: Path | None, plan: sto
         "rtf": config.rtf, "seed": str(config.seed_of(m)), "bag": _bool(plan.save and config.bag),
         "save_data": _bool(plan.save), "output": config.output, "mission": i.mission, "submission": i.submission,
         "n_simulation": str(m), "button_timeout": f"{config.button_timeout:g}", "rviz": _bool(config.rviz),
+        "utm_plan": str(config.utm_plan) if config.utm_plan else "",
     }
     argv = []
     for arg in config.launch_command:
@@ -414,6 +416,8 @@ def launch_command(config: BatchConfig, m: int, data_dir: Path | None, plan: sto
         argv.append(arg)
     if config.rviz and config.uses_default_launch():
         argv.append("rviz:=true")
+    if config.utm_plan and config.uses_default_launch():
+        argv.append(f"utm_plan:={config.utm_plan}")
     return argv
 
 

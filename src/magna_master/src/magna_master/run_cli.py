@@ -82,6 +82,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                           help="if the dataset has simulations: delete and rewrite the ones run again")
     conflict.add_argument("--skip-save", dest="policy", action="store_const", const=storage.SKIP_SAVE,
                           help="if the dataset has simulations: run without saving anything")
+    parser.add_argument("--utm-plan", type=Path, metavar="FILE",
+                        help="a UTM flight-plan file (JSON) for missions that follow paths 'from utm'; the UTM "
+                             "node issues its plans at their simulated times (format: src/magna_gs/README.md)")
     parser.add_argument("--strict", action="store_true",
                         help="refuse the world or mission for what would only be a warning (what the original "
                              "ROS-MAGNA tolerated); for authors of new files")
@@ -114,7 +117,17 @@ def build_config(args):
             command = tuple(shlex.split(args.launch_command))
         except ValueError as err:
             raise BatchError(f"--launch-command: {err}") from None
-    return BatchConfig(inputs=inputs, n_iter=args.n_iter, name=args.name, n_dataset=args.dataset, rtf=args.rtf,
+    utm_plan = None
+    if args.utm_plan is not None:
+        from magna_gs.utm import UtmPlanError, load_plan
+
+        try:  # a bad plan stops the batch before anything starts, as the ground station would
+            load_plan(args.utm_plan)
+        except UtmPlanError as err:
+            raise BatchError(f"--utm-plan: {' '.join(str(err).split())}") from None
+        utm_plan = args.utm_plan.expanduser().resolve()
+    return BatchConfig(inputs=inputs, n_iter=args.n_iter, utm_plan=utm_plan, name=args.name, n_dataset=args.dataset,
+                       rtf=args.rtf,
                        seed=args.seed, bag=not args.no_bag, save_data=not args.no_data,
                        data_root=args.data_root, policy=args.policy,
                        time_limit=args.time_limit or None, button_timeout=args.button_timeout,
