@@ -206,5 +206,35 @@ def test_which_plan_a_simulation_flies(tmp_path):
     assert given.issues == () and warning == ""
     given, warning = choose_plan("", flies, "m.json")
     assert given.issues == () and warning.startswith("m.json: the mission flies UTM flight plans")
-    assert "utm_plan:=FILE" in warning
+    assert "--utm-plan FILE" in warning and "utm_plan:=FILE" in warning
     assert choose_plan("", {"State_Machine": []}, "m.json")[1] == ""
+
+
+def _utm_mission(utm):
+    return {"Agents_Config": [{"ID": 1, "model": "iris", "mode": "sitl", "marker_color": [255, 0, 0, 0.5]}],
+            "UTM": utm,
+            "State_Machine": [{"type": "CBState", "state_type": "spawn_agents", "name": "spawn",
+                               "parameters": {"initial_poses": [["Ground_Station", "Agents_take_off", "matrix",
+                                                                 [0, 0, 0]]]},
+                               "outcomes": {"completed": "1_utm"}},
+                              {"type": "SimpleActionState", "state_type": "follow_path", "name": "utm", "ids": 1,
+                               "parameters": {"path": "from utm", "dynamic": "position"},
+                               "outcomes": {"succeeded": "completed", "utm_new_flightplan": "1_utm"}}]}
+
+
+def test_a_mission_may_carry_its_own_plan_and_a_bad_one_is_refused_when_the_mission_loads(tmp_path):
+    from magna_gs.mission.loader import load_mission
+    from magna_gs.mission.model import MissionError
+
+    good = tmp_path / "good.json"
+    good.write_text(json.dumps(_utm_mission({"flight_plans": [{"ids": [1], "at": 0, "waypoints": [[0, 0, 3]]}]})))
+    assert load_mission(good).mission.agent_ids == [1]
+    (tmp_path / "plan.json").write_text(json.dumps({"flight_plans": [{"ids": [1], "waypoints": [[0, 0, 3]]}]}))
+    named = tmp_path / "named.json"
+    named.write_text(json.dumps(_utm_mission("plan.json")))  # a plan file beside the mission
+    load_mission(named)
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(_utm_mission({"flight_plans": [{"ids": [1], "at": -1, "waypoints": [[0, 0, 3]]}]})))
+    with pytest.raises(MissionError) as refused:
+        load_mission(bad)
+    assert "bad.json: UTM" in str(refused.value) and "flight_plans[0].at" in str(refused.value)

@@ -428,6 +428,7 @@ def choose_plan(plan_file: str | Path | None, mission_data, mission_file: str | 
     if mission_uses_utm(mission_data):
         warning = (f"{mission_file}: the mission flies UTM flight plans (a follow_path \"from utm\") but "
                    f"names no plan: the UTM issues none, checks the paths the UAVs fly for conflicts, and a "
-                   f"follow_path \"from utm\" flies the UAV's last path again; give a plan file with "
-                   f"utm_plan:=FILE (an argument of simulation.launch)")
+                   f"follow_path \"from utm\" flies the UAV's last path again; give a plan with "
+                   f"magna run --utm-plan FILE (utm_plan:=FILE of simulation.launch) or in the mission's "
+                   f"top-level \"UTM\"")
     return UtmPlan("no plan"), warning

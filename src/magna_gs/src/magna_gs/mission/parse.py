@@ -51,7 +51,8 @@ from magna_gs.mission.model import (
 
 NODE_KEYS = ("type", "name", "state_type", "parameters", "outcomes", "ids", "ids_var", "occurrencies",
              "occurrencies_outcome_map", "outcome_cb", "child_termination_cb", "connector_outcome")
-TOP_KEYS = (AGENTS_KEY, "State_Machine")
+UTM_KEY = "UTM"  # optional: the mission's own UTM flight plans (magna_gs.utm), or the name of a plan file
+TOP_KEYS = (AGENTS_KEY, "State_Machine", UTM_KEY)
 _MISSING = object()
 
 
@@ -97,7 +98,9 @@ def parse_mission(migration: Migration, source: str, airframe_dir: Path | None =
     for key in data:
         if key not in TOP_KEYS and key != LEGACY_AGENTS_KEY:  # both agent keys: _agents says so
             reader.fail(str(key), f"unknown key{_hint(key, (*TOP_KEYS, LEGACY_AGENTS_KEY))}; a mission has "
-                                  f"{AGENTS_KEY} and State_Machine")
+                                  f"{AGENTS_KEY} and State_Machine (and optionally {UTM_KEY}, its flight plans)")
+    if UTM_KEY in data:
+        _utm(reader, data)
     agents, agents_key = _agents(reader, airframe_dir)
     root: list[Node] = []
     if "State_Machine" not in data:
@@ -112,6 +115,16 @@ def parse_mission(migration: Migration, source: str, airframe_dir: Path | None =
     if not root:
         reader.complete = False
     return Parsed(Mission(source, agents, root, agents_key), reader.warnings, reader.problems, reader.complete)
+
+
+def _utm(reader: _Reader, data: dict) -> None:
+    """The mission's UTM section is checked now, as the ground station would check it before flying."""
+    from magna_gs.utm import UtmPlanError, mission_plan
+
+    try:
+        mission_plan(data, reader.source)
+    except UtmPlanError as error:
+        reader.problems.append(" ".join(str(error).split()))
 
 
 def _agents(reader: _Reader, airframe_dir: Path | None):
