@@ -6,6 +6,7 @@ import pytest
 
 from magna_uav.config import configs_from_mission
 from magna_uav.evaluator import Evaluator
+from magna_uav.shapes import Cylinder
 from magna_uav.world_view import AgentState, Obstacle, WorldView
 
 R = 0.3  # iris safety radius
@@ -126,3 +127,28 @@ def test_the_view_must_be_the_evaluated_uavs_own():
 def test_the_threshold_is_a_fraction(threshold):
     with pytest.raises(ValueError, match="low_battery: .* give a value in 0..1"):
         Evaluator(config(), low_battery=threshold)
+
+
+def power_line_view(own, safety_radius=R):
+    """One 400 m x 0.3 m wire along x at 25 m, as the original GAUSSUseCase1 worlds have them."""
+    along_x = np.array([[0, 0, 1], [0, 1, 0], [-1, 0, 0.0]])
+    v = WorldView(1, [[-1000, 1000], [-1000, 1000], [-10, 500]])
+    v.update_agent(AgentState(1, position=own, safety_radius=safety_radius))
+    v.set_obstacles([Obstacle.solid("wire", Cylinder((0, 0, 25), along_x, 0.15, 200.0))])
+    return v
+
+
+def test_flying_95_m_above_a_long_wire_is_no_collision():
+    # its bounding sphere has a radius of 200 m: measured to it, this was a collision (gap about -105 m)
+    e = Evaluator(config(model="plane")).step(power_line_view((50, 0, 120), safety_radius=1.0))
+    assert e.outcome is None and e.collided_with == []
+    assert e.obstacle_gaps == pytest.approx({"wire": 95 - 0.15 - 1.0})
+
+
+def test_touching_a_long_wire_is_a_collision():
+    ev = Evaluator(config())
+    near = ev.step(power_line_view((-150, 0.3, 25.4)))  # 0.5 m from the axis: 0.35 m from the surface
+    assert near.outcome is None and near.obstacle_gaps["wire"] == pytest.approx(0.35 - R)
+    touching = ev.step(power_line_view((-150, 0.0, 25.4)))  # 0.4 m from the axis
+    assert touching.outcome == "collision" and touching.collided_with == ["wire"]
+    assert "wire (gap -0.05 m)" in touching.reason and ev.collisions == {"wire": 1}

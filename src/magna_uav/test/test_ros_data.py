@@ -1,4 +1,5 @@
 """World data from ROS messages: obstacle markers, depth images and agent updates without a master; one live test."""
+import json
 import math
 import struct
 
@@ -11,7 +12,7 @@ from uav_abstraction_layer.msg import State
 from visualization_msgs.msg import Marker, MarkerArray
 
 from magna_uav.ros_data import ObstacleMarkers, WorldUpdater, depth_image, marker_obstacle, obstacles_from_markers
-from magna_uav.world_view import WorldView
+from magna_uav.world_view import AgentState, WorldView
 from tests.support import CORPUS, wait_until
 
 YAW_90 = Quaternion(0.0, 0.0, math.sqrt(0.5), math.sqrt(0.5))
@@ -108,6 +109,56 @@ def test_markers_of_the_world_node_become_obstacles():
         np.testing.assert_allclose(got.position, want.position, atol=1e-9)
         bound = want.dimensions[0] / 2 if want.shape == "sphere" else np.linalg.norm(want.dimensions) / 2
         assert got.radius == pytest.approx(bound)
+
+
+def test_markers_keep_their_real_shape_for_the_gaps():
+    view = WorldView(1)
+    view.update_agent(AgentState(1, [0, 0, 0], safety_radius=0.0))
+
+    def distance(m, point):
+        view.set_obstacles([marker_obstacle(m)])
+        view.update_agent(AgentState(1, point, safety_radius=0.0))
+        return view.nearest_obstacles()[0][1]
+
+    cube = marker(Marker.CUBE, scale=(10, 2, 2), position=(0, 0, 5), orientation=YAW_90)  # long side along y
+    assert distance(cube, (0, 8, 5)) == pytest.approx(3.0) and distance(cube, (4, 0, 5)) == pytest.approx(3.0)
+    assert distance(cube, (0, 0, 5.5)) == pytest.approx(-0.5)
+    cylinder = marker(Marker.CYLINDER, scale=(2, 2, 10), position=(0, 0, 5))
+    assert distance(cylinder, (4, 0, 5)) == pytest.approx(3.0) and distance(cylinder, (0, 0, 12)) == pytest.approx(2.0)
+    sphere = marker(Marker.SPHERE, scale=(2, 2, 2))
+    assert marker_obstacle(sphere).parts == () and distance(sphere, (0, 3, 0)) == pytest.approx(2.0)
+    # a triangle list is measured to its triangles: one triangle in the plane z = 0, moved up 1 m
+    triangle = marker(Marker.TRIANGLE_LIST, points=[(0, 0, 0), (4, 0, 0), (0, 4, 0)], position=(0, 0, 1))
+    assert distance(triangle, (1, 1, 3)) == pytest.approx(2.0) and distance(triangle, (-3, 0, 1)) == pytest.approx(3)
+    line = marker(Marker.LINE_STRIP, points=[(0, 0, 0), (10, 0, 0), (10, 10, 0)], scale=(0.2, 0, 0))
+    assert distance(line, (5, 2, 0)) == pytest.approx(1.9) and distance(line, (12, 5, 0)) == pytest.approx(1.9)
+
+
+def test_the_power_lines_of_a_world_are_measured_as_wires():
+    """A world like the original GAUSSUseCase1 power line: two 400 m x 0.3 m wires 25 m up, along x."""
+    from magna_worlds.markers import world_markers
+    from magna_worlds.registry import WorldRegistry
+
+    wires = {"name": "Wires", "prefix": "w", "shape": "cylinder", "dimensions": [4.0, 4.0, 400.0],
+             "origin": [[-600.0, 0.0, 25.0], [0, math.pi / 2, 0]],  # roll, pitch, yaw: the axis lies along x
+             "poses_sets": [{"type": "coordinates", "use": "obstacles", "obstacles_shape": ["cylinder"],
+                             "obstacles_dimensions": [0.3, 0.3, 400],
+                             "coordinates": [[[0, 1.5, 0], [0, 0, 0]], [[0, -1.5, 0], [0, 0, 0]]]}]}
+    world = {"scenario": {"world_boundaries": [[-1000, 1000], [-1000, 1000], [-10, 500]], "volumes": [
+        {"name": "Line", "prefix": "line", "origin": [[0.0, 100.0, 0.0], [0, 0, 0]], "geometries": [wires]}]}}
+    part = WorldRegistry(seed=1).add_inline("line", json.dumps(world))
+    obstacles = obstacles_from_markers(world_markers([part]))
+    assert [o.name for o in obstacles] == ["line_w_obs_0", "line_w_obs_1"]
+    assert all(o.radius > 199.0 for o in obstacles)  # the bounding spheres are useless for gaps
+    view = WorldView(1)
+    view.set_obstacles(obstacles)
+    view.update_agent(AgentState(1, [-500, 100, 25 + 95], safety_radius=1.0))
+    gaps = [gap for _, gap in view.nearest_obstacles()]
+    assert gaps == pytest.approx([math.hypot(95, 1.5) - 0.15 - 1.0] * 2)
+    view.update_agent(AgentState(1, [-790, 101.5, 26.0], safety_radius=1.0))  # 1 m over one wire, near its end
+    (first, gap), (_, other) = view.nearest_obstacles()
+    assert first.name == "line_w_obs_0" and gap == pytest.approx(1 - 0.15 - 1.0)
+    assert other == pytest.approx(math.hypot(3, 1) - 0.15 - 1.0)
 
 
 # --- depth -----------------------------------------------------------------------------------------------------
@@ -260,7 +311,7 @@ def test_topics_fill_the_view(rospy_node):
             assert view.own.ual_state == State.FLYING_AUTO and view.own.velocity[1] == pytest.approx(1.0)
             np.testing.assert_array_equal(view.own.depth, [[2.5, 7.0]])
             (obstacle, obstacle_gap), = [(o, g) for o, g in view.nearest_obstacles() if o.name == "test91_box"]
-            assert obstacle_gap == pytest.approx(3 - math.sqrt(3) - 0.3)
+            assert obstacle_gap == pytest.approx(3 - 1 - 0.3)  # to the box's bottom face, 1 m below its centre
 
         data.close()
         pubs[3].publish(pose(8, 0, 2, stamp=4.0))

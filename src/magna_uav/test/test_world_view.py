@@ -4,6 +4,7 @@ import math
 import numpy as np
 import pytest
 
+from magna_uav.shapes import Box, Cylinder
 from magna_uav.world_view import AgentState, Obstacle, WorldView
 
 
@@ -31,7 +32,7 @@ def test_nearest_agents_sorted_by_gap_between_safety_spheres_ties_by_id():
     assert [s.id for s in view.others()] == [2, 3, 4]
 
 
-def test_nearest_obstacles_use_their_bounding_sphere():
+def test_a_spherical_obstacle_is_its_bounding_sphere():
     view = view_with(obstacles=[Obstacle("far", np.array([10.0, 0, 1]), 1.0),
                                 Obstacle("near", np.array([0, 2.0, 1]), 1.0)])
     assert [(o.name, gap) for o, gap in view.nearest_obstacles()] == [("near", 0.5), ("far", 8.5)]
@@ -43,3 +44,54 @@ def test_boundaries_and_yaw():
     assert not view.inside_boundaries([0, 0, 2.5])
     half = math.sqrt(0.5)
     assert AgentState(1, orientation=[0, 0, half, half]).yaw == pytest.approx(math.pi / 2)
+
+
+# --- real shapes: gaps to the surface, not to the bounding sphere ----------------------------------------------
+
+def wire(name="wire", centre=(0, 0, 25)):
+    """A power-line wire as the original GAUSS worlds place it: a cylinder 400 m long, 0.3 m thick, along x."""
+    along_x = np.array([[0, 0, 1], [0, 1, 0], [-1, 0, 0.0]])  # the cylinder's own z turned onto map x
+    return Obstacle.solid(name, Cylinder(centre, along_x, 0.15, 200.0))
+
+
+def test_a_long_wire_is_as_thin_as_it_is():
+    w = wire()
+    assert w.radius == pytest.approx(200.0, abs=0.01)  # its bounding sphere: what the old gap measured to
+    view = view_with(obstacles=[w])
+    view.update_agent(AgentState(1, [120.0, 0, 25 + 95], safety_radius=0.5))
+    ((found, gap),) = view.nearest_obstacles()
+    assert found is w and gap == pytest.approx(95 - 0.15 - 0.5)
+    view.update_agent(AgentState(1, [120.0, 0.4, 25.3], safety_radius=0.5))  # 0.5 m from the axis
+    assert view.nearest_obstacles()[0][1] == pytest.approx(0.5 - 0.15 - 0.5)
+
+
+def test_gap_to_a_box_turned_by_yaw_and_from_inside_it():
+    c, s = math.cos(math.radians(30)), math.sin(math.radians(30))
+    box = Obstacle.solid("hangar", Box((10, 0, 1), [[c, -s, 0], [s, c, 0], [0, 0, 1]], (6, 1, 1)))
+    view = view_with(obstacles=[box])  # own safety radius 0.5, at (0, 0, 1)
+    end = np.array([10, 0, 1]) + 6 * np.array([c, s, 0])  # the middle of the box's far end face, 2 m high
+    view.update_agent(AgentState(1, end + 3 * np.array([c, s, 0]), safety_radius=0.5))
+    assert view.nearest_obstacles()[0][1] == pytest.approx(3 - 0.5)
+    view.update_agent(AgentState(1, end + 2 * np.array([-s, c, 0]), safety_radius=0.5))  # beside the end's edge
+    assert view.nearest_obstacles()[0][1] == pytest.approx(1 - 0.5)
+    view.update_agent(AgentState(1, [10, 0, 1.2], safety_radius=0.5))  # inside: 0.8 m from the top and bottom
+    assert view.nearest_obstacles()[0][1] == pytest.approx(-0.8 - 0.5)
+
+
+def test_nearest_obstacles_are_ordered_by_the_real_gap():
+    # the wire's bounding sphere (radius 200) swallows everything; its surface is 25 m below us
+    obstacles = [wire(), Obstacle("ball", np.array([0, 8.0, 1]), 1.0),
+                 Obstacle.solid("slab", Box((0, -5, 1), None, (1, 1, 1))),
+                 Obstacle("twin", np.array([0, -8.0, 1]), 1.0)]
+    view = view_with(obstacles=obstacles)
+    view.update_agent(AgentState(1, [0, 0, 50], safety_radius=0.5))
+    order = [(o.name, round(g, 9)) for o, g in view.nearest_obstacles()]
+    assert [n for n, _ in order] == ["wire", "slab", "ball", "twin"]
+    assert order[0][1] == pytest.approx(25 - 0.15 - 0.5)
+    view.update_agent(AgentState(1, [0, 0, 1], safety_radius=0.5))
+    # ball and twin tie at 6.5: the list order decides; k and within as for UAVs
+    assert [(o.name, round(g, 9)) for o, g in view.nearest_obstacles()] == [
+        ("slab", 3.5), ("ball", 6.5), ("twin", 6.5), ("wire", round(24 - 0.15 - 0.5, 9))]
+    assert [o.name for o, _ in view.nearest_obstacles(k=2)] == ["slab", "ball"]
+    assert [o.name for o, _ in view.nearest_obstacles(within=6.5)] == ["slab"]
+    np.testing.assert_allclose(view.obstacle_distances(), [24 - 0.15, 7, 4, 7])

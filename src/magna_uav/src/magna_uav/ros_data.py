@@ -18,7 +18,7 @@ message that carries pose and velocity halves that; nothing reads another UAV's 
 or battery (the evaluator, roles and recorder look at the own UAV's).
 
 and to the world node's latched /magna/world/markers, whose namespace "obstacles" becomes
-the view's obstacles (bounding spheres). A UAV enters the view at its first pose: what is
+the view's obstacles (their real shape and their bounding sphere). A UAV enters the view at its first pose: what is
 heard of it before (velocity, state, battery) is kept and shows up with that pose, so the
 view never holds a UAV at a made-up position.
 
@@ -43,6 +43,7 @@ from sensor_msgs.msg import BatteryState, Image
 from uav_abstraction_layer.msg import State
 from visualization_msgs.msg import Marker, MarkerArray
 
+from magna_uav.shapes import Box, Capsule, Cylinder, Mesh, Sphere
 from magna_uav.world_view import AgentState, Obstacle, WorldView
 
 MARKERS_TOPIC = "/magna/world/markers"
@@ -75,8 +76,12 @@ class ObstacleMarkers:
     """The obstacle markers heard so far, keyed by (ns, id) as rviz keys them.
 
     Only namespace "obstacles" counts. ADD (= MODIFY) puts or replaces a marker, DELETE
-    removes it, DELETEALL (ns "" or "obstacles") empties the set. Each marker becomes the
-    bounding sphere of what rviz would draw:
+    removes it, DELETEALL (ns "" or "obstacles") empties the set. Each marker becomes an
+    Obstacle whose parts are the solid rviz would draw (a CUBE a box, a SPHERE a sphere, a
+    CYLINDER a cylinder, all with the marker's pose; a TRIANGLE_LIST its triangles, as the
+    world node draws a torus or a prism; LINE_LIST/LINE_STRIP capsules of half the line width;
+    POINTS and SPHERE_LIST spheres, CUBE_LIST boxes; an ellipsoid SPHERE its box and an elliptic
+    CYLINDER the circular one of its larger axis, both holding it), and whose bounding sphere is:
 
     - CUBE: half the diagonal of the scale (full edge lengths); SPHERE: half the largest
       scale; CYLINDER: half the diagonal of (diameter, height) -- each the smallest sphere
@@ -88,8 +93,10 @@ class ObstacleMarkers:
     - ARROW, TEXT_VIEW_FACING, MESH_RESOURCE have no size of their own here: skipped, and
       `apply` says so.
 
-    The name is the marker's `text` when it has one, else "obstacle_{id}". Markers in a
-    frame other than map are skipped (there is no tf lookup here).
+    The bounding sphere is what ORCA-3D and the networks are given; gaps, nearest-first order
+    and collisions use the parts (magna_uav.world_view). The name is the marker's `text` when it
+    has one, else "obstacle_{id}". Markers in a frame other than map are skipped (there is no
+    tf lookup here).
     """
 
     def __init__(self, namespace: str = OBSTACLE_NS):
@@ -130,7 +137,8 @@ class ObstacleMarkers:
 
 
 def marker_obstacle(marker: Marker) -> Obstacle | None:
-    """The bounding sphere of one marker in map (None for a point marker without points); ValueError if unusable."""
+    """One marker in map as an Obstacle: its real shape and bounding sphere (None for a point marker without
+    points); ValueError if unusable."""
     if marker.header.frame_id not in MAP_FRAMES:
         raise ValueError(f"in frame {marker.header.frame_id!r}, not map (no tf lookup here)")
     kind = _MARKER_TYPES.get(marker.type, f"type {marker.type}")
@@ -144,11 +152,16 @@ def marker_obstacle(marker: Marker) -> Obstacle | None:
     name = marker.text.strip() or f"obstacle_{marker.id}"
 
     if marker.type == Marker.CUBE:
-        return Obstacle(name, position, float(np.linalg.norm(scale)) / 2.0)
+        return Obstacle(name, position, float(np.linalg.norm(scale)) / 2.0, (Box(position, rotation, scale / 2.0),))
     if marker.type == Marker.SPHERE:
-        return Obstacle(name, position, float(scale.max()) / 2.0)
+        if np.ptp(scale) == 0.0:
+            return Obstacle(name, position, float(scale[0]) / 2.0)  # the bounding sphere is the shape
+        # an ellipsoid (the worlds have none): its box in its own frame, which holds it
+        return Obstacle(name, position, float(scale.max()) / 2.0, (Box(position, rotation, scale / 2.0),))
     if marker.type == Marker.CYLINDER:
-        return Obstacle(name, position, math.hypot(max(scale[0], scale[1]), scale[2]) / 2.0)
+        radius = max(scale[0], scale[1]) / 2.0  # an elliptic section is held by the circle of its larger axis
+        return Obstacle(name, position, float(math.hypot(2.0 * radius, scale[2])) / 2.0,
+                        (Cylinder(position, rotation, radius, scale[2] / 2.0),))
 
     item = {  # half the size of what is drawn at each point
         Marker.TRIANGLE_LIST: 0.0,
@@ -170,7 +183,27 @@ def marker_obstacle(marker: Marker) -> Obstacle | None:
     mid = (points.min(axis=0) + points.max(axis=0)) / 2.0
     radius, centre = min((float(np.linalg.norm(points - c, axis=1).max()), i) for i, c in enumerate((np.zeros(3), mid)))
     local = mid if centre == 1 else np.zeros(3)
-    return Obstacle(name, position + rotation @ local, radius + float(item))
+    in_map = points @ rotation.T + position
+    return Obstacle(name, position + rotation @ local, radius + float(item),
+                    _point_parts(marker.type, in_map, rotation, scale, float(item)))
+
+
+def _point_parts(kind: int, points: np.ndarray, rotation: np.ndarray, scale: np.ndarray, item: float) -> tuple:
+    """The solids of a marker drawn at points (already in map): what the gaps are measured to."""
+    if kind == Marker.TRIANGLE_LIST:
+        whole = len(points) // 3 * 3  # rviz draws whole triangles only
+        if whole == 0:
+            return tuple(Sphere(p, 0.0) for p in points)
+        return (Mesh(points[:whole].reshape(-1, 3, 3)),)
+    if kind in (Marker.LINE_LIST, Marker.LINE_STRIP):
+        if len(points) < 2:
+            return (Sphere(points[0], item),)
+        pairs = (points[0:len(points) // 2 * 2:2], points[1:len(points) // 2 * 2:2]) if kind == Marker.LINE_LIST \
+            else (points[:-1], points[1:])
+        return tuple(Capsule(a, b, item) for a, b in zip(*pairs, strict=True))
+    if kind == Marker.CUBE_LIST:
+        return tuple(Box(p, rotation, scale / 2.0) for p in points)
+    return tuple(Sphere(p, item) for p in points)  # POINTS (squares facing the camera), SPHERE_LIST
 
 
 def _rotate_out_of_body(orientation_xyzw, vector) -> tuple[float, float, float]:

@@ -3,6 +3,10 @@ of itself and every other UAV, and the obstacles, with nearest-first queries.
 
 Pure data: the ROS side (magna_uav.ros_data) fills it from the UAL topics, the battery
 topic, the depth camera and the world node's obstacle markers.
+
+Gaps to obstacles use their real shape (`magna_uav.shapes`): the signed distance from our
+centre to the obstacle's surface minus our safety radius. A 400 m wire 0.3 m thick is
+0.15 m thick in every direction, not a 200 m sphere.
 """
 from __future__ import annotations
 
@@ -11,6 +15,8 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from magna_uav.shapes import Part, ShapeTable, Sphere, bounding_sphere
 
 UNKNOWN_BATTERY = math.nan
 
@@ -43,11 +49,28 @@ class AgentState:
 
 @dataclass(frozen=True)
 class Obstacle:
-    """A world obstacle as the managers avoid it: its bounding sphere."""
+    """A world obstacle: its bounding sphere (what ORCA-3D and the networks are given) and its real shape.
+
+    `parts` are the solids of its real shape, in map (`magna_uav.shapes`); none means the
+    bounding sphere is the shape (a spherical obstacle, or one known only by its sphere).
+    Gaps, the nearest-first order and collisions use the parts.
+    """
 
     name: str
-    position: np.ndarray  # m, centre in map
+    position: np.ndarray  # m, bounding sphere centre in map
     radius: float  # m, bounding sphere
+    parts: tuple[Part, ...] = field(default=(), repr=False)
+
+    @classmethod
+    def solid(cls, name: str, *parts: Part) -> Obstacle:
+        """An obstacle of these parts, with a bounding sphere about the centre of their bounding box."""
+        centre, radius = bounding_sphere(parts)
+        return cls(name, centre, radius, tuple(parts))
+
+    @property
+    def shape(self) -> tuple[Part, ...]:
+        """The solids the gaps are measured to."""
+        return self.parts or (Sphere(self.position, self.radius),)
 
 
 class WorldView:
@@ -58,7 +81,7 @@ class WorldView:
         # [[xmin, xmax], [ymin, ymax], [zmin, zmax]] or None when the world has none
         self.boundaries = None if boundaries is None else np.asarray(boundaries, dtype=float).reshape(3, 2)
         self._agents: dict[int, AgentState] = {}
-        self.obstacles: tuple[Obstacle, ...] = ()
+        self.obstacles = ()
 
     def update_agent(self, state: AgentState) -> None:
         self._agents[state.id] = state
@@ -81,8 +104,30 @@ class WorldView:
     def others(self) -> list[AgentState]:
         return [self._agents[i] for i in sorted(self._agents) if i != self.own_id]
 
+    @property
+    def obstacles(self) -> tuple[Obstacle, ...]:
+        return self._obstacles
+
+    @obstacles.setter
+    def obstacles(self, obstacles: Iterable[Obstacle]) -> None:
+        self._obstacles = tuple(obstacles)
+        self._table = ShapeTable([o.shape for o in self._obstacles])  # stacked once per obstacle set
+        self._distances_at: tuple[bytes, np.ndarray] | None = None
+
     def set_obstacles(self, obstacles: Iterable[Obstacle]) -> None:
-        self.obstacles = tuple(obstacles)
+        self.obstacles = obstacles
+
+    def obstacle_distances(self, position: Sequence[float] | None = None) -> np.ndarray:
+        """Signed distance (m) from our centre (or `position`) to each obstacle's surface, in `obstacles` order.
+
+        Negative inside. The evaluator, the neighbour selection and the recorder ask for the
+        same pose within a control step: the last answer is kept.
+        """
+        p = self.own.position if position is None else np.asarray(position, dtype=float).reshape(3)
+        key = p.tobytes()
+        if self._distances_at is None or self._distances_at[0] != key:
+            self._distances_at = (key, self._table.signed_distances(p))
+        return self._distances_at[1]
 
     def nearest_agents(self, k: int | None = None, within: float = math.inf) -> list[tuple[AgentState, float]]:
         """Other UAVs by the gap between their safety spheres and ours, nearest first (ties by id)."""
@@ -92,11 +137,18 @@ class WorldView:
         return _nearest(gaps, k, within)
 
     def nearest_obstacles(self, k: int | None = None, within: float = math.inf) -> list[tuple[Obstacle, float]]:
-        """Obstacles by the gap between their bounding spheres and our safety sphere, nearest first."""
-        own = self.own
-        gaps = [(float(np.linalg.norm(o.position - own.position)) - o.radius - own.safety_radius, n, o)
-                for n, o in enumerate(self.obstacles)]
-        return _nearest(gaps, k, within)
+        """Obstacles by the gap between their real shape and our safety sphere, nearest first (ties: list order).
+
+        gap = signed distance from our centre to the obstacle's surface - our safety radius.
+        """
+        if not self._obstacles:
+            return []
+        gaps = self.obstacle_distances() - self.own.safety_radius
+        order = np.argsort(gaps, kind="stable")  # stable: ties keep the obstacles' order
+        order = order[gaps[order] < within]
+        if k is not None:
+            order = order[:k]
+        return [(self._obstacles[i], float(gaps[i])) for i in order]
 
     def inside_boundaries(self, position: Sequence[float] | None = None) -> bool:
         if self.boundaries is None:

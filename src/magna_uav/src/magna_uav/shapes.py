@@ -1,0 +1,259 @@
+"""Obstacle solids and the signed distance from a point to each of them, vectorised with numpy.
+
+An obstacle reaches a UAV manager as an rviz marker: the world node publishes a cube,
+sphere or cylinder as that primitive and a torus or prism as the triangles of its closed
+surface. `magna_uav.ros_data` turns each marker into one or more parts, all in map:
+
+    Sphere(centre, radius)
+    Box(centre, rotation, half)                      half edge lengths along the box frame's axes
+    Cylinder(centre, rotation, radius, half_height)  the axis is the frame's z
+    Capsule(a, b, radius)                            a thick segment (line markers)
+    Mesh(triangles)                                  (m, 3, 3) corners of a surface's triangles
+
+`rotation` turns the part's own frame into map (a column per own axis). The signed
+distance from a point to an obstacle is the smallest over its parts: the distance to the
+solid's surface, negative inside it. It is exact for spheres, boxes, cylinders and
+capsules; for a mesh it is the exact distance to the triangles, negative when the point is
+inside the surface (generalised winding number above one half), so it is exact for a
+prism, and for a torus it is the distance to the drawn facets, which lie on the true
+surface at their corners and at most ~0.5 % of the tube radius inside it in between.
+
+`ShapeTable` stacks the parts of a whole obstacle list by kind once, so one query costs
+a handful of array operations however many obstacles there are.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+
+def _vector(value, n: int = 3) -> np.ndarray:
+    return np.asarray(value, dtype=float).reshape(n)
+
+
+def _matrix(value) -> np.ndarray:
+    return np.eye(3) if value is None else np.asarray(value, dtype=float).reshape(3, 3)
+
+
+@dataclass(frozen=True, eq=False)
+class Sphere:
+    centre: np.ndarray
+    radius: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "centre", _vector(self.centre))
+        object.__setattr__(self, "radius", float(self.radius))
+
+
+@dataclass(frozen=True, eq=False)
+class Box:
+    centre: np.ndarray
+    rotation: np.ndarray  # own frame -> map
+    half: np.ndarray  # half edge lengths, own frame
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "centre", _vector(self.centre))
+        object.__setattr__(self, "rotation", _matrix(self.rotation))
+        object.__setattr__(self, "half", np.abs(_vector(self.half)))
+
+
+@dataclass(frozen=True, eq=False)
+class Cylinder:
+    centre: np.ndarray
+    rotation: np.ndarray  # own frame -> map; the axis is the own z
+    radius: float
+    half_height: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "centre", _vector(self.centre))
+        object.__setattr__(self, "rotation", _matrix(self.rotation))
+        object.__setattr__(self, "radius", float(self.radius))
+        object.__setattr__(self, "half_height", float(self.half_height))
+
+
+@dataclass(frozen=True, eq=False)
+class Capsule:
+    a: np.ndarray
+    b: np.ndarray
+    radius: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "a", _vector(self.a))
+        object.__setattr__(self, "b", _vector(self.b))
+        object.__setattr__(self, "radius", float(self.radius))
+
+
+@dataclass(frozen=True, eq=False)
+class Mesh:
+    triangles: np.ndarray  # (m, 3, 3): triangle, corner, xyz
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "triangles", np.asarray(self.triangles, dtype=float).reshape(-1, 3, 3))
+
+
+Part = Sphere | Box | Cylinder | Capsule | Mesh
+KINDS = (Sphere, Box, Cylinder, Capsule, Mesh)
+
+
+class ShapeTable:
+    """The parts of a list of obstacles, stacked by kind; `signed_distances(point)` gives one value per obstacle.
+
+    `parts_of[i]` are obstacle i's parts (an obstacle given none counts as the sphere
+    `fallback[i]`, its bounding sphere).
+    """
+
+    def __init__(self, parts_of: Sequence[Sequence[Part]]):
+        self.count = len(parts_of)
+        rows: dict[type, list[tuple[int, Part]]] = {kind: [] for kind in KINDS}
+        for owner, parts in enumerate(parts_of):
+            for part in parts:
+                rows[type(part)].append((owner, part))
+        self._groups = []  # (owners in nondecreasing order, reduceat starts, unique owners, distance function)
+
+        def group(kind, fn):
+            items = rows[kind]
+            if not items:
+                return
+            owners = np.array([o for o, _ in items], dtype=np.intp)
+            starts = np.flatnonzero(np.r_[True, owners[1:] != owners[:-1]])
+            self._groups.append((starts, owners[starts], fn))
+
+        spheres = [p for _, p in rows[Sphere]]
+        if spheres:
+            self._sph_c = np.array([p.centre for p in spheres])
+            self._sph_r = np.array([p.radius for p in spheres], dtype=float)
+        group(Sphere, self._spheres)
+
+        boxes = [p for _, p in rows[Box]]
+        if boxes:
+            self._box_c = np.array([p.centre for p in boxes])
+            self._box_r = np.array([p.rotation for p in boxes])
+            self._box_h = np.array([p.half for p in boxes])
+        group(Box, self._boxes)
+
+        cylinders = [p for _, p in rows[Cylinder]]
+        if cylinders:
+            self._cyl_c = np.array([p.centre for p in cylinders])
+            self._cyl_r = np.array([p.rotation for p in cylinders])
+            self._cyl_rad = np.array([p.radius for p in cylinders], dtype=float)
+            self._cyl_hh = np.array([p.half_height for p in cylinders], dtype=float)
+        group(Cylinder, self._cylinders)
+
+        capsules = [p for _, p in rows[Capsule]]
+        if capsules:
+            self._cap_a = np.array([p.a for p in capsules])
+            self._cap_ab = np.array([p.b - p.a for p in capsules])
+            self._cap_ab2 = np.einsum("ij,ij->i", self._cap_ab, self._cap_ab)
+            self._cap_r = np.array([p.radius for p in capsules], dtype=float)
+        group(Capsule, self._capsules)
+
+        rows[Mesh] = [(o, p) for o, p in rows[Mesh] if len(p.triangles)]
+        if rows[Mesh]:
+            self._mesh_prepare(np.concatenate([p.triangles for _, p in rows[Mesh]]))
+            sizes = [len(p.triangles) for _, p in rows[Mesh]]
+            self._mesh_starts = np.r_[0, np.cumsum(sizes)[:-1]].astype(np.intp)  # each mesh's first triangle
+        group(Mesh, self._meshes)
+
+    def signed_distances(self, point) -> np.ndarray:
+        """(count,) signed distance (m) from `point` to each obstacle's solid, negative inside; inf without parts."""
+        p = _vector(point)
+        out = np.full(self.count, math.inf)
+        for starts, owners, fn in self._groups:
+            d = fn(p)
+            best = np.minimum.reduceat(d, starts) if len(starts) != len(d) else d
+            out[owners] = np.minimum(out[owners], best)
+        return out
+
+    # --- one kind each: the signed distance to every part of that kind -------------------------------------------
+
+    def _spheres(self, p: np.ndarray) -> np.ndarray:
+        return np.linalg.norm(self._sph_c - p, axis=1) - self._sph_r
+
+    def _boxes(self, p: np.ndarray) -> np.ndarray:
+        q = np.einsum("nji,nj->ni", self._box_r, p - self._box_c)  # R^T (p - c): the point in each box's frame
+        d = np.abs(q) - self._box_h
+        return np.linalg.norm(np.maximum(d, 0.0), axis=1) + np.minimum(d.max(axis=1), 0.0)
+
+    def _cylinders(self, p: np.ndarray) -> np.ndarray:
+        q = np.einsum("nji,nj->ni", self._cyl_r, p - self._cyl_c)
+        dr = np.hypot(q[:, 0], q[:, 1]) - self._cyl_rad
+        dz = np.abs(q[:, 2]) - self._cyl_hh
+        return np.hypot(np.maximum(dr, 0.0), np.maximum(dz, 0.0)) + np.minimum(np.maximum(dr, dz), 0.0)
+
+    def _capsules(self, p: np.ndarray) -> np.ndarray:
+        return _segment_distance(p, self._cap_a, self._cap_ab, self._cap_ab2) - self._cap_r
+
+    def _mesh_prepare(self, tri: np.ndarray) -> None:
+        self._v0, self._v1, self._v2 = tri[:, 0], tri[:, 1], tri[:, 2]
+        self._e0, self._e1 = self._v1 - self._v0, self._v2 - self._v0
+        self._e2 = self._v2 - self._v1
+        dot = lambda a, b: np.einsum("ij,ij->i", a, b)  # noqa: E731
+        self._d00, self._d01, self._d11 = dot(self._e0, self._e0), dot(self._e0, self._e1), dot(self._e1, self._e1)
+        self._e2sq = dot(self._e2, self._e2)
+        self._denom = self._d00 * self._d11 - self._d01 ** 2  # |e0 x e1|^2: 0 for a degenerate triangle
+        normal = np.cross(self._e0, self._e1)
+        length = np.linalg.norm(normal, axis=1)
+        self._flat = length > 1e-12 * np.maximum(self._d00 + self._d11, 1e-300)
+        self._unit_normal = normal / np.where(self._flat, length, 1.0)[:, None]
+
+    def _meshes(self, p: np.ndarray) -> np.ndarray:
+        """Per mesh: the distance to its nearest triangle, negative when the mesh holds `p` (winding > 1/2)."""
+        dot = lambda a, b: np.einsum("ij,ij->i", a, b)  # noqa: E731
+        w = p - self._v0
+        d20, d21 = dot(w, self._e0), dot(w, self._e1)
+        denom = np.where(self._flat, self._denom, 1.0)
+        v = (self._d11 * d20 - self._d01 * d21) / denom
+        u = (self._d00 * d21 - self._d01 * d20) / denom
+        over_face = self._flat & (v >= 0.0) & (u >= 0.0) & (u + v <= 1.0)
+        plane = np.abs(dot(w, self._unit_normal))
+        edges = np.minimum(np.minimum(_segment_distance(p, self._v0, self._e0, self._d00),
+                                      _segment_distance(p, self._v0, self._e1, self._d11)),
+                           _segment_distance(p, self._v1, self._e2, self._e2sq))
+        nearest = np.minimum.reduceat(np.where(over_face, plane, edges), self._mesh_starts)
+
+        # winding number of each mesh about p: the triangles' solid angles (Van Oosterom and Strackee) / 4 pi
+        a, b, c = self._v0 - p, self._v1 - p, self._v2 - p
+        la, lb, lc = (np.linalg.norm(x, axis=1) for x in (a, b, c))
+        numerator = dot(a, np.cross(b, c))
+        denominator = la * lb * lc + dot(a, b) * lc + dot(b, c) * la + dot(c, a) * lb
+        winding = np.add.reduceat(2.0 * np.arctan2(numerator, denominator), self._mesh_starts) / (4.0 * math.pi)
+        return np.where(np.abs(winding) > 0.5, -nearest, nearest)
+
+
+def _segment_distance(p: np.ndarray, a: np.ndarray, ab: np.ndarray, ab2: np.ndarray) -> np.ndarray:
+    """Distance from p to each segment a + t ab, t in [0, 1] (a point when ab is 0)."""
+    ap = p - a
+    t = np.clip(np.einsum("ij,ij->i", ap, ab) / np.where(ab2 > 0.0, ab2, 1.0), 0.0, 1.0)
+    return np.linalg.norm(ap - t[:, None] * ab, axis=1)
+
+
+def signed_distance(parts: Sequence[Part], point) -> float:
+    """The signed distance from `point` to the union of `parts` (one obstacle); inf for no parts."""
+    return float(ShapeTable([parts]).signed_distances(point)[0])
+
+
+def bounding_sphere(parts: Sequence[Part]) -> tuple[np.ndarray, float]:
+    """A sphere holding every part, about the centre of their bounding box (for pictures and tests)."""
+    lo, hi = [], []
+    for part in parts:
+        if isinstance(part, Sphere):
+            lo.append(part.centre - part.radius)
+            hi.append(part.centre + part.radius)
+        elif isinstance(part, Box | Cylinder):
+            half = part.half if isinstance(part, Box) else np.array([part.radius, part.radius, part.half_height])
+            reach = np.abs(part.rotation) @ half
+            lo.append(part.centre - reach)
+            hi.append(part.centre + reach)
+        elif isinstance(part, Capsule):
+            lo.append(np.minimum(part.a, part.b) - part.radius)
+            hi.append(np.maximum(part.a, part.b) + part.radius)
+        elif len(part.triangles):
+            lo.append(part.triangles.reshape(-1, 3).min(axis=0))
+            hi.append(part.triangles.reshape(-1, 3).max(axis=0))
+    if not lo:
+        raise ValueError("no parts to bound")
+    lo_, hi_ = np.min(lo, axis=0), np.max(hi, axis=0)
+    return (lo_ + hi_) / 2.0, float(np.linalg.norm(hi_ - lo_)) / 2.0
