@@ -1,7 +1,9 @@
 """The evaluator: at every control step, is this UAV still safe to carry on?
 
-It measures the gap between our safety sphere and every other UAV's (and every obstacle's
-bounding sphere), as WorldView gives them, and turns what it finds into an action outcome:
+It measures the gap between our safety sphere and every other UAV's, and between our safety
+sphere and every obstacle's real shape (the signed distance from our centre to its surface
+minus our safety radius: a wire is as thin as it is, not its bounding sphere), as WorldView
+gives them, and turns what it finds into an action outcome:
 
     collision          a gap below zero (closer than the two radii), naming who or what
     aborted            our position is outside the world boundaries
@@ -38,7 +40,7 @@ class Evaluation:
     """What one control step found; `outcome` is None while it is safe to carry on."""
 
     agent_gaps: dict[int, float] = field(default_factory=dict)  # other UAV id -> gap between safety spheres, m
-    obstacle_gaps: dict[str, float] = field(default_factory=dict)  # obstacle name -> gap, m
+    obstacle_gaps: dict[str, float] = field(default_factory=dict)  # obstacle name -> gap to its surface, m
     nearest_agent_gap: float = math.inf
     nearest_obstacle_gap: float = math.inf
     collided_with: list[str] = field(default_factory=list)  # "uav_2", obstacle names; nearest first

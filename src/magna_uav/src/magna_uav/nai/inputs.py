@@ -20,9 +20,9 @@ Names: "own_vel.x", "goal_pose_rel.z", "distance", "others_pos_rel[0].x", "other
 is one block, `OUTPUT` = "sel_vel" (3): the selected velocity (m/s, map frame).
 
 Neighbours (`select_neighbors`, also what ORCA-3D avoids): the N other UAVs and the M
-obstacles nearest by the gap between safety/bounding spheres (`WorldView.nearest_agents`,
-`nearest_obstacles`), only those with a gap below `neighbor_dist`, nearest first (ties by
-id / list order).
+obstacles nearest by their gap (between safety spheres for UAVs; from the own safety sphere
+to the obstacle's real shape for obstacles: `WorldView.nearest_agents`, `nearest_obstacles`),
+only those with a gap below `neighbor_dist`, nearest first (ties by id / list order).
 
 Padding: a missing neighbour or obstacle (fewer than N / M within `neighbor_dist`) is
 filled with the relative position (PAD_FACTOR * neighbor_dist, 0, 0) = (2 neighbor_dist,

@@ -16,7 +16,8 @@ safety radii).
 
 N is `N_neighbors_aware` and M is `N_obstacles_aware` (a NAI parameter, default: N):
 UAVs and obstacles are counted apart, so an obstacle never hides a UAV. Both are the
-nearest by the gap between spheres below `neighborDist` (`inputs.select_neighbors`,
+nearest by their gap below `neighborDist` (to safety spheres for UAVs, to the real
+shape for obstacles; `inputs.select_neighbors`,
 the same selection that feeds the neural networks). The solver is given exactly these
 (its own neighbour cap is set to their number).
 
