@@ -233,3 +233,14 @@ def test_check_prints_warnings_on_stderr_and_strict_refuses(tmp_path):
     assert strict.returncode == 2 and strict.stdout == ""
     assert strict.stderr.startswith(f"magna world: {file}: scenario.world_boundaries: missing")
     assert strict.stderr.rstrip().endswith("(refused with --strict)")
+
+
+def test_the_old_take_off_geometry_name_migrates_to_the_one_legacy_missions_spawn_at(tmp_path):
+    file = write(tmp_path, [volume([cube("UAVs_take_off", "to")], name="Ground_Station", prefix="GS")])
+    world = load_world(file)
+    assert [g.name for g in world.volumes[0].geometries] == ["Agents_take_off"]
+    assert any("geometries[0].name: UAVs_take_off -> Agents_take_off" in c for c in world.changes)
+    both = write(tmp_path, [volume([cube("UAVs_take_off", "to"), cube("Agents_take_off", "ao", origin=(5, 0, 1))],
+                                   name="Ground_Station", prefix="GS")], name="both.json")
+    names = [g.name for g in load_world(both).volumes[0].geometries]
+    assert names == ["UAVs_take_off", "Agents_take_off"]  # a volume that has both keeps both

@@ -5,7 +5,10 @@ The world format changed over the original's history; its files of every era are
 - a geometry's pose sets were a list called `divisions` (Jan 2019) -> `poses_sets`;
 - a pose set turned its poses with `orientation` -> `poses_orientation` (a zigzag still
   takes `orientation`, it is part of the current zigzag format);
-- a matrix had no `matrix_type`: it was always laid by counts per axis -> `matrix_type: dimension`.
+- a matrix had no `matrix_type`: it was always laid by counts per axis -> `matrix_type: dimension`;
+- the ground station's take-off geometry was called `UAVs_take_off` until March 2019, when it became
+  `Agents_take_off` (the name legacy missions' `spawn_uavs` migrates to) -> renamed, unless the
+  volume already has an `Agents_take_off`.
 
 `migrate(data)` never changes its argument and never fails: what it does not recognise is
 left for the loader to report. It renames and fills in, never adds or removes volumes,
@@ -23,6 +26,7 @@ from magna_worlds.errors import join_path
 LEGACY_SETS_KEY, SETS_KEY = "divisions", "poses_sets"
 LEGACY_ORIENTATION_KEY, ORIENTATION_KEY = "orientation", "poses_orientation"
 KEEPS_ORIENTATION = ("zigzag",)  # its own `orientation` field is current format
+LEGACY_TAKE_OFF, TAKE_OFF = "UAVs_take_off", "Agents_take_off"
 
 
 @dataclass
@@ -60,9 +64,15 @@ def migrate(data: Any) -> Migration:
         geometries = volume.get("geometries") if isinstance(volume, dict) else None
         if not isinstance(geometries, list):
             continue
+        names = {g.get("name") for g in geometries if isinstance(g, dict)}
         for g, geometry in enumerate(geometries):
             if isinstance(geometry, dict):
-                _geometry(result, geometry, join_path(join_path(join_path(path, v), "geometries"), g))
+                where = join_path(join_path(join_path(path, v), "geometries"), g)
+                if geometry.get("name") == LEGACY_TAKE_OFF and TAKE_OFF not in names:
+                    geometry["name"] = TAKE_OFF
+                    result.changes.append(f"{join_path(where, 'name')}: {LEGACY_TAKE_OFF} -> {TAKE_OFF} (the "
+                                          "take-off geometry's later name, where legacy missions spawn)")
+                _geometry(result, geometry, where)
     return result
 
 
