@@ -152,9 +152,7 @@ class ShapeTable:
 
         rows[Mesh] = [(o, p) for o, p in rows[Mesh] if len(p.triangles)]
         if rows[Mesh]:
-            self._mesh_prepare(np.concatenate([p.triangles for _, p in rows[Mesh]]))
-            sizes = [len(p.triangles) for _, p in rows[Mesh]]
-            self._mesh_starts = np.r_[0, np.cumsum(sizes)[:-1]].astype(np.intp)  # each mesh's first triangle
+            self._mesh_prepare([p.triangles for _, p in rows[Mesh]])
         group(Mesh, self._meshes)
 
     def signed_distances(self, point) -> np.ndarray:
@@ -186,41 +184,69 @@ class ShapeTable:
     def _capsules(self, p: np.ndarray) -> np.ndarray:
         return _segment_distance(p, self._cap_a, self._cap_ab, self._cap_ab2) - self._cap_r
 
-    def _mesh_prepare(self, tri: np.ndarray) -> None:
+    def _mesh_prepare(self, meshes: list[np.ndarray]) -> None:
+        tri = np.concatenate(meshes)
+        self._tri_mesh = np.repeat(np.arange(len(meshes)), [len(m) for m in meshes])  # mesh of each triangle
+        self._mesh_count = len(meshes)
+        self._mesh_starts = np.r_[0, np.cumsum([len(m) for m in meshes])[:-1]].astype(np.intp)
+        corners = [m.reshape(-1, 3) for m in meshes]
+        self._mesh_lo = np.array([c.min(axis=0) for c in corners])
+        self._mesh_hi = np.array([c.max(axis=0) for c in corners])
         self._v0, self._v1, self._v2 = tri[:, 0], tri[:, 1], tri[:, 2]
         self._e0, self._e1 = self._v1 - self._v0, self._v2 - self._v0
         self._e2 = self._v2 - self._v1
-        dot = lambda a, b: np.einsum("ij,ij->i", a, b)  # noqa: E731
-        self._d00, self._d01, self._d11 = dot(self._e0, self._e0), dot(self._e0, self._e1), dot(self._e1, self._e1)
-        self._e2sq = dot(self._e2, self._e2)
+        self._d00, self._d01, self._d11 = _dot(self._e0, self._e0), _dot(self._e0, self._e1), _dot(self._e1, self._e1)
+        self._e2sq = _dot(self._e2, self._e2)
         self._denom = self._d00 * self._d11 - self._d01 ** 2  # |e0 x e1|^2: 0 for a degenerate triangle
         normal = np.cross(self._e0, self._e1)
         length = np.linalg.norm(normal, axis=1)
         self._flat = length > 1e-12 * np.maximum(self._d00 + self._d11, 1e-300)
         self._unit_normal = normal / np.where(self._flat, length, 1.0)[:, None]
+        # a ball about each triangle's centroid holding it: bounds that spare the exact distance to far triangles
+        self._centroid = tri.mean(axis=1)
+        self._reach = np.linalg.norm(tri - self._centroid[:, None, :], axis=2).max(axis=1)
 
     def _meshes(self, p: np.ndarray) -> np.ndarray:
         """Per mesh: the distance to its nearest triangle, negative when the mesh holds `p` (winding > 1/2)."""
-        dot = lambda a, b: np.einsum("ij,ij->i", a, b)  # noqa: E731
-        w = p - self._v0
-        d20, d21 = dot(w, self._e0), dot(w, self._e1)
-        denom = np.where(self._flat, self._denom, 1.0)
-        v = (self._d11 * d20 - self._d01 * d21) / denom
-        u = (self._d00 * d21 - self._d01 * d20) / denom
-        over_face = self._flat & (v >= 0.0) & (u >= 0.0) & (u + v <= 1.0)
-        plane = np.abs(dot(w, self._unit_normal))
-        edges = np.minimum(np.minimum(_segment_distance(p, self._v0, self._e0, self._d00),
-                                      _segment_distance(p, self._v0, self._e1, self._d11)),
-                           _segment_distance(p, self._v1, self._e2, self._e2sq))
-        nearest = np.minimum.reduceat(np.where(over_face, plane, edges), self._mesh_starts)
+        to_centroid = np.linalg.norm(self._centroid - p, axis=1)
+        upper = np.minimum.reduceat(to_centroid + self._reach, self._mesh_starts)
+        # only triangles that may be nearer than some triangle of their mesh surely is
+        k = np.flatnonzero(to_centroid - self._reach <= upper[self._tri_mesh])
+        w = p - self._v0[k]
+        e0, e1 = self._e0[k], self._e1[k]
+        d00, d01, d11 = self._d00[k], self._d01[k], self._d11[k]
+        d20, d21 = _dot(w, e0), _dot(w, e1)
+        flat = self._flat[k]
+        denom = np.where(flat, self._denom[k], 1.0)
+        v = (d11 * d20 - d01 * d21) / denom
+        u = (d00 * d21 - d01 * d20) / denom
+        over_face = flat & (v >= 0.0) & (u >= 0.0) & (u + v <= 1.0)
+        plane = np.abs(_dot(w, self._unit_normal[k]))
+        edges = np.minimum(np.minimum(_segment_distance(p, self._v0[k], e0, d00),
+                                      _segment_distance(p, self._v0[k], e1, d11)),
+                           _segment_distance(p, self._v1[k], self._e2[k], self._e2sq[k]))
+        nearest = np.full(self._mesh_count, math.inf)
+        owner = self._tri_mesh[k]  # nondecreasing, as k is: one run per mesh (every mesh keeps a triangle)
+        runs = np.flatnonzero(np.r_[True, owner[1:] != owner[:-1]])
+        nearest[owner[runs]] = np.minimum.reduceat(np.where(over_face, plane, edges), runs)
 
-        # winding number of each mesh about p: the triangles' solid angles (Van Oosterom and Strackee) / 4 pi
-        a, b, c = self._v0 - p, self._v1 - p, self._v2 - p
-        la, lb, lc = (np.linalg.norm(x, axis=1) for x in (a, b, c))
-        numerator = dot(a, np.cross(b, c))
-        denominator = la * lb * lc + dot(a, b) * lc + dot(b, c) * la + dot(c, a) * lb
-        winding = np.add.reduceat(2.0 * np.arctan2(numerator, denominator), self._mesh_starts) / (4.0 * math.pi)
-        return np.where(np.abs(winding) > 0.5, -nearest, nearest)
+        # inside only within the mesh's bounding box: there, the winding number of the mesh about p,
+        # its triangles' solid angles (Van Oosterom and Strackee) over 4 pi
+        boxed = np.all((self._mesh_lo <= p) & (p <= self._mesh_hi), axis=1)
+        if boxed.any():
+            t = np.flatnonzero(boxed[self._tri_mesh])
+            a, b, c = self._v0[t] - p, self._v1[t] - p, self._v2[t] - p
+            la, lb, lc = (np.linalg.norm(x, axis=1) for x in (a, b, c))
+            numerator = _dot(a, np.cross(b, c))
+            denominator = la * lb * lc + _dot(a, b) * lc + _dot(b, c) * la + _dot(c, a) * lb
+            winding = np.bincount(self._tri_mesh[t], weights=2.0 * np.arctan2(numerator, denominator),
+                                  minlength=self._mesh_count) / (4.0 * math.pi)
+            nearest = np.where(np.abs(winding) > 0.5, -nearest, nearest)
+        return nearest
+
+
+def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.einsum("ij,ij->i", a, b)
 
 
 def _segment_distance(p: np.ndarray, a: np.ndarray, ab: np.ndarray, ab2: np.ndarray) -> np.ndarray:
