@@ -167,11 +167,11 @@ def test_a_hand_made_bag_gives_one_step_per_row_with_the_newest_poses_and_the_ra
     assert np.all(np.isnan(position_2[:2])) and np.all(np.isnan(gap_2[:2]))  # UAV 2 not heard of before 1 s
     assert position_2[2].tolist() == [0.0, 3.0, 2.0] and velocity_2[2].tolist() == [0.0, -1.0, 0.0]
     assert gap_2[2] == pytest.approx(math.hypot(1.0, 3.0) - 0.6)  # centre distance - both iris safety radii
-    # obstacles, nearest first by the gap of the bounding spheres; the geometries' markers do not count
-    box_radius = math.sqrt(12) / 2
+    # obstacles, nearest first by the gap to their real shape; the geometries' markers do not count
+    box_half = 1.0  # the 2 m cube's face is 1 m from its centre
     assert one.obstacle_pos.shape == (6, 5, 3) and one.obstacle_gap.shape == (6, 5)
     assert one.obstacle_pos[0, 0].tolist() == [4.0, 0.0, 2.0] and one.obstacle_pos[0, 1].tolist() == [0.0, 10.0, 2.0]
-    assert one.obstacle_gap[0, :2] == pytest.approx([3.5 - box_radius - 0.3, math.hypot(0.5, 10) - 1.0 - 0.3])
+    assert one.obstacle_gap[0, :2] == pytest.approx([3.5 - box_half - 0.3, math.hypot(0.5, 10) - 1.0 - 0.3])
     assert np.all(np.isnan(one.obstacle_gap[0, 2:])) and np.all(np.isnan(one.obstacle_pos[0, 2:]))
     assert np.all(np.isnan(one.obstacle_gap[5, 1:]))  # the ball was deleted at 1.5 s
     # UAV 2: its follower step keeps the goal's target; its own position came unstamped at 1 s
