@@ -19,11 +19,12 @@ step, so the steps can be rebuilt where no CSV exists (a real flight's bag, a lo
   gap = centre distance minus both safety radii (the airframes' `safety_radius`, the models of
   `mission.json`), as the view computes it.
 - obstacles: the managers learn them only from the world node's `/magna/world/markers`, as the
-  bounding spheres `magna_uav.ros_data.ObstacleMarkers` makes of the "obstacles" markers; the same
-  class replays the bagged marker messages up to each step (by the time the bag got them), so a
-  world part added or deleted mid-mission counts from then on. They are ranked by the gap between
-  own safety sphere and bounding sphere, nearest first, ties in the markers' order, as the
-  recorder ranks them; K = `magna_uav.recorder.DEFAULT_OBSTACLES` slots, NaN where fewer.
+  obstacles (real shape and bounding sphere) `magna_uav.ros_data.ObstacleMarkers` makes of the
+  "obstacles" markers; the same class replays the bagged marker messages up to each step (by the
+  time the bag got them), so a world part added or deleted mid-mission counts from then on. They
+  are ranked by the gap between own safety sphere and the obstacle's real shape, nearest first,
+  ties in the markers' order, as the recorder ranks them; K = `magna_uav.recorder.DEFAULT_OBSTACLES`
+  slots, NaN where fewer.
 - role_end: the last step of each role, i.e. the last message of each `role_number`; the recorder
   writes the role's outcome on that same row, so `role_end` equals the CSV's (`outcome != ""`).
 

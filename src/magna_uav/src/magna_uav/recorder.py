@@ -318,7 +318,7 @@ def _ranked_obstacles(view: WorldView, gaps: dict, has_own: bool) -> list:
     """(Obstacle, gap) for every obstacle of the view, nearest first (ties by the view's order).
 
     The evaluation's gap for a name is used when that name is unique in the view (a gap by name
-    cannot tell two obstacles of one name apart); otherwise the view's sphere gap.
+    cannot tell two obstacles of one name apart); otherwise the view's gap (to the obstacle's real shape).
     """
     sphere = {id(o): g for o, g in view.nearest_obstacles()} if has_own else {}
     names = Counter(o.name for o in view.obstacles)
