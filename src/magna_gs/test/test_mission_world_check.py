@@ -2,7 +2,7 @@
 import pytest
 
 from magna_gs.mission.loader import mission_from_data
-from magna_gs.mission.world_check import check_against_world, pose_definitions
+from magna_gs.mission.world_check import check_against_world, check_in_world, pose_definitions
 from magna_worlds.generate import resolve_world
 from magna_worlds.loader import load_world
 from tests.support import CORPUS
@@ -52,13 +52,19 @@ def test_agents_spawned_on_top_of_each_other(base_mission, gym):
         "their safety radii (0.3 + 0.3 m); give them other places"]
 
 
-def test_a_path_point_outside_the_world_boundaries(base_mission, gym):
+def test_a_path_point_outside_the_world_boundaries_warns_and_strict_refuses_it(base_mission, gym):
     base_mission["State_Machine"][2]["occurrencies"][0]["parameters"]["path"].append(
         {"definition": ["Ground_Station", "volume", "coordinates", [[0, 12, 3], [0, 0, 0]]]})
-    assert check(base_mission, gym) == [
-        "m.json: State_Machine[2].occurrencies[0].parameters.path[1].definition: [Ground_Station, volume, "
-        "coordinates, [[0, 12, 3], [0, 0, 0]]] gives a pose at (0.00, 12.00, 3.00), outside the world boundaries "
-        "x -9..9 y -9..9 z -9..9 m; UAVs may not fly there"]
+    where = ("m.json: State_Machine[2].occurrencies[0].parameters.path[1].definition: [Ground_Station, volume, "
+             "coordinates, [[0, 12, 3], [0, 0, 0]]] gives a pose at (0.00, 12.00, 3.00), outside the world "
+             "boundaries x -9..9 y -9..9 z -9..9 m")
+    mission = mission_from_data(base_mission, "m.json").mission
+    found = check_in_world(mission, gym)  # the original loaded it; flying there ended the UAV's role
+    assert found.problems == [] and len(found.warnings) == 1
+    assert found.warnings[0].startswith(where + "; loaded as the original did") and "'aborted'" in found.warnings[0]
+    assert check_in_world(mission, gym, strict=True).problems == [
+        where + "; UAVs may not fly there (refused with --strict)"]
+    assert check(base_mission, gym) == check_in_world(mission, gym, strict=True).problems
 
 
 EXTRA_PART = [{"name": "Extra", "prefix": "EX", "origin": [[5, 5, 0], [0, 0, 0]], "permits": "geofence",

@@ -252,3 +252,15 @@ def test_magna_run_refuses_a_bad_utm_plan_before_anything_starts(tree, tmp_path,
     error = capsys.readouterr().err
     assert "--utm-plan" in error and "plan.json: flight_plans[0].at" in error
     assert not (tmp_path / "d").exists()
+
+
+def test_a_mission_place_outside_its_worlds_boundaries_warns_in_the_pair_and_strict_refuses_it(tree):
+    far = _volume("Area", "AR", 20, [_geometry("Line", "line", origin=(0.0, 0.0, 80.0))])  # above z 0..50
+    _write(tree, "Worlds/Lab/Inspection.json", _world(GROUND, far))
+    inspection = _by_label(port.port_folder(tree))["Lab/Inspection"]
+    assert inspection.validates and inspection.world.label == "Lab/Inspection"
+    assert any("outside the world boundaries" in w for w in inspection.pair_warnings)
+    assert "warning in Lab/Inspection: " in port.format_report(port.port_folder(tree))
+    strict = port.port_folder(tree, strict=True)
+    world = next(w for w in strict.worlds if w.label == "Lab/Inspection")  # its pose set lies outside too
+    assert not world.loads and any("refused with --strict" in p for p in world.problems)

@@ -236,7 +236,7 @@ def check_inputs(inputs: Inputs, world_search: Sequence[Path], strict: bool = Fa
     try:
         from magna_gs.mission.loader import load_mission
         from magna_gs.mission.model import MissionError
-        from magna_gs.mission.world_check import check_against_world
+        from magna_gs.mission.world_check import check_in_world
     except ImportError:
         load_mission = None
     if load_mission is not None:  # the ground station's own checks: what it would refuse, refused now
@@ -244,7 +244,7 @@ def check_inputs(inputs: Inputs, world_search: Sequence[Path], strict: bool = Fa
             loaded = load_mission(inputs.mission_file, strict=strict)
         except MissionError as err:
             raise BatchError(_first_of(err.problems)) from None
-        problems = check_against_world(loaded.mission, world.resolved, search_path=world_search)
+        problems = check_in_world(loaded.mission, world.resolved, search_path=world_search, strict=strict).problems
         if problems:
             raise BatchError(_first_of(problems) + f"; in the world {inputs.world_file}") from None
         return

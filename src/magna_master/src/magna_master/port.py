@@ -50,6 +50,7 @@ class FileReport:
     # missions only
     world: FileReport | None = None  # the paired world
     pair_problems: list[str] = field(default_factory=list)  # refusals of the mission in its world
+    pair_warnings: list[str] = field(default_factory=list)  # what the original tolerated of it in its world
     flight: str | None = None  # the outcome when flown, "success" when it succeeded
     flight_message: str = ""
 
@@ -206,19 +207,21 @@ def _shared_words(world_name: str, mission_name: str) -> int:
     return sum(1 for word in words if word.lower() in flat)
 
 
-def pair_mission(mission: _Mission, worlds: list[_World], search_path: Iterable[Path], seed: int = 0) -> None:
+def pair_mission(mission: _Mission, worlds: list[_World], search_path: Iterable[Path], seed: int = 0,
+                 strict: bool = False) -> None:
     """Pick the mission's world and check the mission in it (sets report.world and report.pair_problems)."""
-    from magna_gs.mission.world_check import check_against_world
+    from magna_gs.mission.world_check import check_in_world
 
     if mission.loaded is None:
         return
-    candidates = candidate_worlds(mission, worlds)
     first_problems = None
-    for world in candidates:
-        problems = [" ".join(p.split()) for p in check_against_world(mission.loaded.mission, world.resolved, seed,
-                                                                     search_path=list(search_path))]
+    for world in candidate_worlds(mission, worlds):
+        found = check_in_world(mission.loaded.mission, world.resolved, seed, search_path=list(search_path),
+                               strict=strict)
+        problems = [" ".join(p.split()) for p in found.problems]
         if not problems:
             mission.report.world, mission.report.pair_problems = world.report, []
+            mission.report.pair_warnings = [" ".join(w.split()) for w in found.warnings]
             return
         if first_problems is None:
             first_problems = (world, problems)
@@ -243,7 +246,7 @@ def port_folder(folder: Path, strict: bool = False, seed: int = 0,
         if progress:
             progress(f"mission {_label(path)}")
         mission = check_mission(path, strict)
-        pair_mission(mission, worlds, search_path, seed)
+        pair_mission(mission, worlds, search_path, seed, strict)
         missions.append(mission)
     return PortReport(Path(folder), [w.report for w in worlds], [m.report for m in missions], strict)
 
@@ -293,13 +296,14 @@ def format_report(report: PortReport, details: bool = True) -> str:
         world = mission.world.label if mission.world else ("no world holds it" if mission.loads else "")
         flies = "-" if mission.flight is None else ("yes" if mission.flew else mission.flight)
         rows.append((mission.label, "mission", _cell(mission.loads), str(len(mission.changes)),
-                     str(len(mission.warnings)), world, validates, flies if flown else ""))
+                     str(len(mission.warnings) + len(mission.pair_warnings)), world, validates, flies if flown else ""))
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
     lines = ["  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)).rstrip() for row in rows]
     lines.insert(1, "  ".join("-" * w for w in widths))
     if details:
         for item in [*report.worlds, *report.missions]:
             notes = ([f"  migrated: {c}" for c in item.changes] + [f"  warning: {w}" for w in item.warnings]
+                     + [f"  warning in {item.world.label}: {w}" for w in item.pair_warnings if item.world]
                      + [f"  refused: {p}" for p in item.problems] + [f"  refused in {item.world.label}: {p}"
                                                                       for p in item.pair_problems if item.world])
             if item.flight is not None and not item.flew:
@@ -330,7 +334,8 @@ def as_json(report: PortReport) -> dict:
                "warnings": r.warnings, "problems": r.problems}
         if r.kind == "mission":
             out.update(world=r.world.label if r.world else None, validates=r.validates,
-                       pair_problems=r.pair_problems, flight=r.flight, flight_message=r.flight_message)
+                       pair_problems=r.pair_problems, pair_warnings=r.pair_warnings, flight=r.flight,
+                       flight_message=r.flight_message)
         return out
 
     return {"folder": str(report.folder), "strict": report.strict, "totals": totals(report),

@@ -215,17 +215,21 @@ def _check(args) -> int:
 
 
 def _check_world(mission, args) -> tuple[str, list[str]]:
-    from magna_gs.mission.world_check import check_against_world, pose_definitions
+    from magna_gs.mission.world_check import check_in_world, pose_definitions
     from magna_worlds.errors import WorldError
-    from magna_worlds.generate import resolve_world
-    from magna_worlds.loader import load_world
+    from magna_worlds.loader import load_world_checked
 
+    strict = getattr(args, "strict", False)
     path = _world_file(args.world, args.search_path)
     try:
-        resolved = resolve_world(load_world(path, [*args.search_path, *_world_roots(args.search_path)]), args.seed)
+        checked = load_world_checked(path, [*args.search_path, *_world_roots(args.search_path)], strict=strict,
+                                     seed=args.seed)
     except WorldError as error:
         raise _Problems([" ".join(str(error).split())]) from None
-    problems = [" ".join(p.split()) for p in check_against_world(mission, resolved, args.seed)]
+    found = check_in_world(mission, checked.resolved, args.seed, strict=strict)
+    for warning in [*checked.warnings, *found.warnings]:
+        print(f"magna mission: warning: {' '.join(warning.split())}", file=sys.stderr)
+    problems = [" ".join(p.split()) for p in found.problems]
     count = len(pose_definitions(mission))
     verdict = f"{count} pose definition(s) resolve" if not problems else f"{len(problems)} problem(s) (on stderr)"
     return f"world       {path} (seed {args.seed}): {verdict}", problems

@@ -6,7 +6,8 @@ mission (spawn_agents initial poses, follow_path and set_mission paths) with
 
 - a definition naming a volume, geometry, matrix cell, zigzag path or set of poses the
   world does not have (the query's own message, placed at the definition's JSON path);
-- a pose outside the world boundaries (UAVs may not fly there);
+- a pose outside the world boundaries: a warning (the original loaded such missions, and a UAV
+  that flew there ended its role), a problem in strict mode;
 - two agents spawned closer than the sum of their safety radii.
 
 World parts a mission adds inline (world_config add with a list of volumes) are loaded
@@ -16,6 +17,7 @@ is the world given here).
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -62,13 +64,28 @@ def inline_world_parts(mission: Mission, seed: int = 0, search_path: Iterable[Pa
     return parts, problems
 
 
+@dataclass
+class WorldFindings:
+    problems: list[str]  # `file: JSON.path: message`: the mission cannot fly in this world
+    warnings: list[str]  # what the original tolerated (a place outside the world boundaries)
+
+
 def check_against_world(mission: Mission, resolved_world, seed: int = 0,
                         search_path: Iterable[Path] | None = None) -> list[str]:
-    """Problems (`file: JSON.path: message`) of the mission in `resolved_world` (a ResolvedWorld or a list)."""
+    """Problems (`file: JSON.path: message`) of the mission in `resolved_world` (a ResolvedWorld or a list),
+    a place outside the world boundaries among them (as `check_in_world` in strict mode)."""
+    return check_in_world(mission, resolved_world, seed, search_path, strict=True).problems
+
+
+def check_in_world(mission: Mission, resolved_world, seed: int = 0, search_path: Iterable[Path] | None = None,
+                   strict: bool = False) -> WorldFindings:
+    """Problems and warnings of the mission in `resolved_world`. A place outside the world boundaries is a
+    warning (the original loaded such missions; a UAV that got there ended its role), a problem when `strict`."""
     from magna_worlds.query import PoseQueries, QueryError
 
     worlds = list(resolved_world) if isinstance(resolved_world, Sequence) else [resolved_world]
     parts, problems = inline_world_parts(mission, seed, search_path)
+    warnings: list[str] = []
     worlds += parts
     queries = PoseQueries(seed)
     positions: dict[str, np.ndarray] = {}  # definition's JSON path -> map positions
@@ -82,11 +99,16 @@ def check_against_world(mission: Mission, resolved_world, seed: int = 0,
         owner = next(w for w in worlds if definition.volume in w.volume_frames)
         outside = _outside(owner.world.boundaries, result.positions)
         if outside is not None:
-            problems.append(f"{mission.where(definition.json_path)}: {definition} gives a pose at "
-                            f"({', '.join(f'{v:.2f}' for v in outside)}), outside the world boundaries "
-                            f"{_bounds(owner.world.boundaries)}; UAVs may not fly there")
+            where = (f"{mission.where(definition.json_path)}: {definition} gives a pose at "
+                     f"({', '.join(f'{v:.2f}' for v in outside)}), outside the world boundaries "
+                     f"{_bounds(owner.world.boundaries)}")
+            if strict:
+                problems.append(f"{where}; UAVs may not fly there (refused with --strict)")
+            else:
+                warnings.append(f"{where}; loaded as the original did: a UAV that flies there ends its role "
+                                f"'aborted' (out of the world boundaries) and the mission takes that branch")
     problems += _spawn_spacing(mission, positions)
-    return problems
+    return WorldFindings(problems, warnings)
 
 
 def _placed(mission: Mission, definition: PoseDefinition, message: str) -> str:
