@@ -258,9 +258,24 @@ def test_a_mission_place_outside_its_worlds_boundaries_warns_in_the_pair_and_str
     far = _volume("Area", "AR", 20, [_geometry("Line", "line", origin=(0.0, 0.0, 80.0))])  # above z 0..50
     _write(tree, "Worlds/Lab/Inspection.json", _world(GROUND, far))
     inspection = _by_label(port.port_folder(tree))["Lab/Inspection"]
+    assert inspection.validates and inspection.world.label == "Lab/Big"  # a world where it is clean comes first
+    _write(tree, "Worlds/Lab/Big.json", _world(GROUND, far))
+    inspection = _by_label(port.port_folder(tree))["Lab/Inspection"]
     assert inspection.validates and inspection.world.label == "Lab/Inspection"
     assert any("outside the world boundaries" in w for w in inspection.pair_warnings)
     assert "warning in Lab/Inspection: " in port.format_report(port.port_folder(tree))
     strict = port.port_folder(tree, strict=True)
     world = next(w for w in strict.worlds if w.label == "Lab/Inspection")  # its pose set lies outside too
     assert not world.loads and any("refused with --strict" in p for p in world.problems)
+
+
+def test_a_fixed_wing_mission_prefers_the_roomier_of_two_worlds(tree):
+    plane = _mission([])
+    plane["Agents_Config"][0]["model"] = "plane"
+    _write(tree, "Missions/Air/Circuit.json", plane)
+    roomy = _world(GROUND)
+    roomy["scenario"]["world_boundaries"] = [[-900, 900], [-900, 900], [0, 300]]
+    _write(tree, "Worlds/Far/Roomy.json", roomy)
+    found = _by_label(port.port_folder(tree))
+    assert found["Air/Circuit"].world.label == "Far/Roomy"  # it loiters and lands over hundreds of metres
+    assert found["Other/Home"].world.label == "Far/Roomy"  # equally small worlds: the roomier

@@ -15,9 +15,12 @@ order: the world of the mission's own family with the mission's name; then world
 family before others, and worlds of a family named in the mission's family (LPS for
 TestCrazyflieLPS) before the rest; among those, the world more of whose name's words the mission's
 name contains (the original named missions after their world: 1UAVs_cropfield_inspection
-flies in CropField, 1FW in Complete_FW); then the smallest world (the original flew its
-family-less missions in Empty worlds). The first of those against which the mission
-validates is its pair. A mission no world can hold is listed, but is not a pair.
+flies in CropField, 1FW in Complete_FW); then, for a mission that flies a fixed wing, the
+roomiest world (it loiters and lands over hundreds of metres); then the smallest world (the
+original flew its family-less missions in Empty worlds), and of equally small ones the
+roomiest. The first of those in which the mission validates without a warning is its pair
+(else the first in which it validates). A mission no world can hold is listed, but is not a
+pair.
 
 Nothing here starts ROS: flying the pairs is `fly_pairs`, which runs one `magna run`
 simulation each through the batch Master.
@@ -188,15 +191,27 @@ def candidate_worlds(mission: _Mission, worlds: list[_World]) -> list[_World]:
     """The loaded worlds that hold every place the mission names, preferred first (see the module doc)."""
     family, name = mission.report.path.parent.name, mission.report.path.stem
     holding = [w for w in worlds if w.model is not None and mission.places <= w.places]
+    # a fixed wing cannot hover: it needs room to loiter and to land, so room comes before size for it
+    fixed_wing = any(agent.airframe.is_fixed_wing for agent in mission.loaded.mission.agents)
 
     def preference(world: _World):
         same_family = world.report.path.parent.name == family
         size = sum(1 + len(v.geometries) for v in world.model.volumes)
         return (not (same_family and world.report.path.stem == name), not same_family,
                 -_shared_words(world.report.path.parent.name, family), -_shared_words(world.report.path.stem, name),
-                size, world.report.label)
+                -_room(world.model) if fixed_wing else 0.0, size, -_room(world.model), world.report.label)
 
     return sorted(holding, key=preference)
+
+
+def _room(world) -> float:
+    """The volume inside the world's boundaries (m^3): between equally small worlds, the roomier one (a fixed wing
+    needs hundreds of metres to loiter and land; Empty/Empty holds it, a 200 m gym does not)."""
+    import numpy as np
+
+    bounds = np.asarray(world.boundaries, dtype=float)
+    spans = bounds[:, 1] - bounds[:, 0]
+    return float(np.prod(spans)) if np.isfinite(spans).all() else 0.0
 
 
 def _shared_words(world_name: str, mission_name: str) -> int:
@@ -214,19 +229,21 @@ def pair_mission(mission: _Mission, worlds: list[_World], search_path: Iterable[
 
     if mission.loaded is None:
         return
-    first_problems = None
+    # the first world in which the mission is clean, else the first in which it only warns, else the first
+    best = None  # (rank, world, findings): rank 0 clean, 1 warnings only, 2 problems
     for world in candidate_worlds(mission, worlds):
         found = check_in_world(mission.loaded.mission, world.resolved, seed, search_path=list(search_path),
                                strict=strict)
-        problems = [" ".join(p.split()) for p in found.problems]
-        if not problems:
-            mission.report.world, mission.report.pair_problems = world.report, []
-            mission.report.pair_warnings = [" ".join(w.split()) for w in found.warnings]
-            return
-        if first_problems is None:
-            first_problems = (world, problems)
-    if first_problems is not None:
-        mission.report.world, mission.report.pair_problems = first_problems[0].report, first_problems[1]
+        rank = 2 if found.problems else (1 if found.warnings else 0)
+        if best is None or rank < best[0]:
+            best = (rank, world, found)
+        if rank == 0:
+            break
+    if best is not None:
+        _, world, found = best
+        mission.report.world = world.report
+        mission.report.pair_problems = [" ".join(p.split()) for p in found.problems]
+        mission.report.pair_warnings = [" ".join(w.split()) for w in found.warnings]
 
 
 def port_folder(folder: Path, strict: bool = False, seed: int = 0,
