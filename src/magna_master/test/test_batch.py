@@ -213,6 +213,9 @@ def test_hyperparameters_and_the_default_launch_command(batch_inputs):
     assert not any(a.startswith("utm_plan:=") for a in argv)
     with_plan = BatchConfig(inputs=batch_inputs, utm_plan=Path("/plans/gauss.json"))
     assert launch_command(with_plan, 1, None, no_data)[-1] == "utm_plan:=/plans/gauss.json"
+    assert not any(a.startswith("battery_floor:=") for a in argv)
+    sitl_battery = BatchConfig(inputs=batch_inputs, battery_floor=50.0)
+    assert launch_command(sitl_battery, 1, None, no_data)[-1] == "battery_floor:=50"
 
 
 def fake_supervisor_batch(config, script):

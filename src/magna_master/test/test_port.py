@@ -279,3 +279,10 @@ def test_a_fixed_wing_mission_prefers_the_roomier_of_two_worlds(tree):
     found = _by_label(port.port_folder(tree))
     assert found["Air/Circuit"].world.label == "Far/Roomy"  # it loiters and lands over hundreds of metres
     assert found["Other/Home"].world.label == "Far/Roomy"  # equally small worlds: the roomier
+
+
+@pytest.mark.parametrize("value", ["100", "-1", "half"])
+def test_a_battery_floor_outside_0_to_100_is_refused(tree, value, capsys):
+    with pytest.raises(SystemExit) as refused:
+        main(["run", "--world", "Gym/X", "--mission", "Gym/Y", "--battery-floor", value])
+    assert refused.value.code == 2 and "--battery-floor" in capsys.readouterr().err

@@ -114,3 +114,16 @@ def test_bad_update_is_refused(dt, speed, field):
     with pytest.raises(ValueError, match=field):
         battery.update(dt, True, speed)
     assert battery.percentage == 1.0
+
+
+def test_a_floor_keeps_the_charge_as_px4_sitls_battery_does():
+    battery = BatteryModel(IRIS, floor_fraction=0.5)
+    for _ in range(3600):  # an hour of hover: a real iris runs empty long before
+        battery.update(1.0, flying=True)
+    assert battery.percentage == pytest.approx(0.5) and not battery.depleted
+    assert BatteryModel(IRIS).percentage == 1.0
+    started_low = BatteryModel(IRIS, capacity_fraction=0.3, floor_fraction=0.5)
+    started_low.update(60.0, flying=True)
+    assert started_low.percentage == pytest.approx(0.3)  # below its floor from the start: it stays there
+    with pytest.raises(ValueError, match="floor_fraction"):
+        BatteryModel(IRIS, floor_fraction=1.0)

@@ -62,7 +62,8 @@ DEFAULT_LAUNCH_COMMAND: tuple[str, ...] = (
     "output:={output}", "button_timeout:={button_timeout}",
 )
 PLACEHOLDERS = ("mission_file", "world", "subworld", "worlds_path", "data_dir", "rtf", "seed", "bag", "save_data",
-                "output", "mission", "submission", "n_simulation", "button_timeout", "rviz", "utm_plan")
+                "output", "mission", "submission", "n_simulation", "button_timeout", "rviz", "utm_plan",
+                "battery_floor")
 
 
 class BatchError(RuntimeError):
@@ -303,6 +304,7 @@ class BatchConfig:
     output: str = "log"  # roslaunch output of the nodes: log or screen
     rviz: bool = False  # rviz on the display for each simulation (magna_viz rviz.launch); needs DISPLAY
     utm_plan: Path | None = None  # a UTM flight-plan file (magna_gs.utm format) the UTM node issues
+    battery_floor: float = 0.0  # % of charge simulated batteries keep (PX4 SITL's SIM_BAT_MIN_PCT); 0: run empty
 
     @property
     def key(self) -> storage.StorageKey:
@@ -407,7 +409,7 @@ def launch_command(config: BatchConfig, m: int, data_dir: Path | None, plan: sto
         "rtf": config.rtf, "seed": str(config.seed_of(m)), "bag": _bool(plan.save and config.bag),
         "save_data": _bool(plan.save), "output": config.output, "mission": i.mission, "submission": i.submission,
         "n_simulation": str(m), "button_timeout": f"{config.button_timeout:g}", "rviz": _bool(config.rviz),
-        "utm_plan": str(config.utm_plan) if config.utm_plan else "",
+        "utm_plan": str(config.utm_plan) if config.utm_plan else "", "battery_floor": f"{config.battery_floor:g}",
     }
     argv = []
     for arg in config.launch_command:
@@ -418,6 +420,8 @@ def launch_command(config: BatchConfig, m: int, data_dir: Path | None, plan: sto
         argv.append("rviz:=true")
     if config.utm_plan and config.uses_default_launch():
         argv.append(f"utm_plan:={config.utm_plan}")
+    if config.battery_floor and config.uses_default_launch():
+        argv.append(f"battery_floor:={config.battery_floor:g}")
     return argv
 
 

@@ -28,6 +28,10 @@ the paired world, validates (the mission's places resolve in it) and, with --fly
 simulation each at --rtf, 'yes' when the mission ended in success). Below the table, each file's
 changes, warnings and refusals in full.
 
+The original flew its simulated UAVs on PX4's SITL battery, which never falls below 50 % (its
+SIM_BAT_MIN_PCT), so its long inspections never met a low battery; --fly flies them the same way
+(--battery-floor 50). With --battery-floor 0 batteries run empty as in `magna run`.
+
 examples:
   magna port ../shared/ros_magna_corpus
   magna port ~/ros_magna/Code/JSONs --fly --json port.json
@@ -37,6 +41,7 @@ examples:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     from magna_master import storage
+    from magna_master.run_cli import percentage_arg
 
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
     parser.epilog = _EPILOG
@@ -55,6 +60,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="with --fly: where Simulations/ goes (default: ~/magna_data)")
     parser.add_argument("--time-limit", type=float, default=600.0, metavar="SECONDS",
                         help="with --fly: wall-clock seconds per flight before it is stopped (default: 600)")
+    parser.add_argument("--battery-floor", type=percentage_arg, default=50.0, metavar="PCT",
+                        help="with --fly: simulated batteries keep PCT %% of their charge, as the PX4 SITL battery "
+                             "the original flew on (SIM_BAT_MIN_PCT; default: 50); 0 for batteries that run empty")
     parser.add_argument("--json", type=Path, metavar="FILE", help="also write the report as JSON to FILE")
     parser.add_argument("--force", action="store_true", help="replace an existing --json FILE")
     parser.add_argument("--brief", action="store_true", help="the table and totals only, no per-file details")
@@ -96,7 +104,7 @@ def _fly(report, args) -> None:
         inputs = resolve_inputs(str(mission.world.path), str(mission.path), check=False)
         return BatchConfig(inputs=inputs, n_iter=1, name="port", rtf=rtf, seed=args.seed,
                            save_data=not args.no_data, data_root=args.data_root, policy=storage.APPEND,
-                           time_limit=args.time_limit or None)
+                           time_limit=args.time_limit or None, battery_floor=args.battery_floor)
 
     def progress(index, total, mission):
         print(f"flying {index} of {total}: {mission.label} in {mission.world.label}", file=sys.stderr, flush=True)

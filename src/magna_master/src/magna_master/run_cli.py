@@ -11,6 +11,7 @@ written), 130 when interrupted (finished simulations and summary.csv are kept).
 from __future__ import annotations
 
 import argparse
+import math
 import shlex
 import sys
 from pathlib import Path
@@ -85,6 +86,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--utm-plan", type=Path, metavar="FILE",
                         help="a UTM flight-plan file (JSON) for missions that follow paths 'from utm'; the UTM "
                              "node issues its plans at their simulated times (format: src/magna_gs/README.md)")
+    parser.add_argument("--battery-floor", type=percentage_arg, default=0.0, metavar="PCT",
+                        help="simulated batteries never fall below PCT %% of their charge, as PX4's SITL battery "
+                             "(SIM_BAT_MIN_PCT, 50 there) on which the original ROS-MAGNA flew (default: 0, "
+                             "batteries run empty and long missions meet low_battery)")
     parser.add_argument("--strict", action="store_true",
                         help="refuse the world or mission for what would only be a warning (what the original "
                              "ROS-MAGNA tolerated); for authors of new files")
@@ -98,6 +103,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--launch-command", default="", metavar="CMD",
                         help="replace 'roslaunch magna_gs simulation.launch ...' (e.g. a stand-in ground "
                              "station); placeholders: " + ", ".join(f"{{{p}}}" for p in _placeholders()))
+
+
+def percentage_arg(text: str) -> float:
+    """argparse type: a percentage from 0 to below 100."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (0.0 <= value < 100.0):
+        raise argparse.ArgumentTypeError(f"{text!r}: give a percentage from 0 to below 100, e.g. 50")
+    return value
 
 
 def _placeholders():
@@ -126,7 +142,8 @@ def build_config(args):
         except UtmPlanError as err:
             raise BatchError(f"--utm-plan: {' '.join(str(err).split())}") from None
         utm_plan = args.utm_plan.expanduser().resolve()
-    return BatchConfig(inputs=inputs, n_iter=args.n_iter, utm_plan=utm_plan, name=args.name, n_dataset=args.dataset,
+    return BatchConfig(inputs=inputs, n_iter=args.n_iter, utm_plan=utm_plan, battery_floor=args.battery_floor,
+                       name=args.name, n_dataset=args.dataset,
                        rtf=args.rtf,
                        seed=args.seed, bag=not args.no_bag, save_data=not args.no_data,
                        data_root=args.data_root, policy=args.policy,

@@ -17,6 +17,11 @@ current is power / voltage and rises as the voltage sags. Charge is in Ah.
 
 `capacity_fraction` starts the battery partly charged and `drain_factor` scales
 every power draw, so a test mission can reach a low battery in seconds.
+
+`floor_fraction` keeps the charge from falling below that fraction, as PX4's SITL battery
+does (SIM_BAT_MIN_PCT, 50 % by default): the original ROS-MAGNA flew its simulated UAVs
+on that battery, so its long missions never met a low battery. 0 (the default) is a
+real battery that runs empty.
 """
 from __future__ import annotations
 
@@ -36,9 +41,11 @@ _CELL_V = np.array([3.30, 3.61, 3.69, 3.73, 3.84, 4.02, 4.11, 4.20])
 
 class BatteryModel:
     def __init__(self, spec: Battery, capacity_fraction: float = 1.0, drain_factor: float = 1.0,
-                 flying_power: Callable[[float, float], float] | None = None):
+                 flying_power: Callable[[float, float], float] | None = None, floor_fraction: float = 0.0):
         if not 0.0 <= capacity_fraction <= 1.0:
             raise ValueError(f"capacity_fraction: must be 0..1 (the starting charge), got {capacity_fraction}")
+        if not 0.0 <= floor_fraction < 1.0:
+            raise ValueError(f"floor_fraction: must be 0..1 (the charge it never falls below), got {floor_fraction}")
         if not (math.isfinite(drain_factor) and drain_factor > 0.0):
             raise ValueError(f"drain_factor: must be a positive number, got {drain_factor}")
         if spec.capacity_mah <= 0.0 or spec.voltage <= 0.0:
@@ -50,6 +57,7 @@ class BatteryModel:
         self.flying_power = flying_power
         self.capacity_ah = spec.capacity_mah / 1000.0
         self.charge_ah = self.capacity_ah * capacity_fraction
+        self.floor_ah = self.capacity_ah * floor_fraction
         self.power = 0.0  # W, drawn in the last update
         self.current = 0.0  # A, drawn in the last update (positive while discharging)
 
@@ -84,4 +92,5 @@ class BatteryModel:
             return
         self.power = power * self.drain_factor
         self.current = self.power / self.voltage
-        self.charge_ah = max(0.0, self.charge_ah - self.current * dt / 3600.0)
+        floor = min(self.floor_ah, self.charge_ah)  # a battery started below its floor stays where it is
+        self.charge_ah = max(floor, self.charge_ah - self.current * dt / 3600.0)

@@ -64,6 +64,7 @@ Private parameters (defaults):
   ~noise/position_std (0), ~noise/velocity_std (0), ~wind_std (0, N, dynamic model only)
   ~map_origin_geo ([])   [lat, lon, alt] of the map origin, for go_to_waypoint_geo
   ~battery_rate (1)      BatteryState messages per simulated second
+  ~battery_floor (0)     % of charge a battery never falls below (PX4 SITL's SIM_BAT_MIN_PCT; 0: runs empty)
   ~depth_camera/enabled (false), ~depth_camera/width (64), /height (48), /rate (10), /fov (90)
   ~position_th (0.33), ~orientation_th (0.65), ~velocity_timeout (1.0)   UAL thresholds
   ~ground_impact_speed (1.0)   ground contacts faster than this (m/s) are collisions
@@ -102,6 +103,7 @@ class NodeSettings:
     lockstep: bool = True
     lockstep_lead: float = 0.15
     lockstep_timeout: float = 1.0
+    battery_floor: float = 0.0  # percent
 
     @classmethod
     def from_params(cls) -> NodeSettings:
@@ -135,7 +137,10 @@ class NodeSettings:
             start_paused=_as_bool("~start_paused", rospy.get_param("~start_paused", False)),
             lockstep=_as_bool("~lockstep", rospy.get_param("~lockstep", True)),
             lockstep_lead=float(rospy.get_param("~lockstep_lead", 0.15)),
-            lockstep_timeout=float(rospy.get_param("~lockstep_timeout", 1.0)))
+            lockstep_timeout=float(rospy.get_param("~lockstep_timeout", 1.0)),
+            battery_floor=float(rospy.get_param("~battery_floor", 0.0)))
+        if not (math.isfinite(settings.battery_floor) and 0.0 <= settings.battery_floor < 100.0):
+            raise ValueError(f"~battery_floor: {settings.battery_floor} must be a percentage from 0 to below 100")
         for name in ("physics_rate", "pub_rate", "clock_rate", "battery_rate"):
             value = getattr(settings, name)
             if not (math.isfinite(value) and value > 0):
@@ -200,7 +205,7 @@ class SimNode:
     def __init__(self, settings: NodeSettings):
         self.settings = settings
         self.world = SimWorld(settings.physics_rate, settings.seed, settings.wind_std, settings.ual,
-                              settings.ground_impact_speed)
+                              settings.ground_impact_speed, settings.battery_floor / 100.0)
         self.queue = CommandQueue()
         self.servers: dict[int, UalServer] = {}
         self.cameras: dict[int, tuple[rospy.Publisher, rospy.Publisher]] = {}

@@ -52,7 +52,8 @@ class Obstacle:
 
 class SimWorld:
     def __init__(self, physics_rate: float = 240.0, seed: int | None = None, wind_std: float = 0.0,
-                 ual_settings: UalSettings = UalSettings(), ground_impact_speed: float = 1.0):
+                 ual_settings: UalSettings = UalSettings(), ground_impact_speed: float = 1.0,
+                 battery_floor: float = 0.0):
         if not (math.isfinite(physics_rate) and physics_rate > 0):
             raise ValueError(f"physics_rate: {physics_rate} must be a positive number of steps per second")
         self.dt = 1.0 / physics_rate
@@ -65,6 +66,7 @@ class SimWorld:
         self.rng = np.random.default_rng(seed)
         self.ground_id = bodies.create_ground(self.client)
         self.ground_impact_speed = ground_impact_speed
+        self.battery_floor = battery_floor  # fraction of charge batteries keep (PX4 SITL's SIM_BAT_MIN_PCT)
         self.ual_settings = ual_settings
         self.models = {"light": LightModel(self.client, self.dt),
                        "dynamic": QuadrotorModel(self.client, self.dt, rng=self.rng, wind_std=wind_std),
@@ -113,7 +115,8 @@ class SimWorld:
         self.vehicles[uav_id] = vehicle
         self.ual[uav_id] = UalLogic(vehicle, self.ual_settings)
         self.batteries[uav_id] = BatteryModel(
-            frame.battery, flying_power=fixed_wing.flying_power(frame) if frame.is_fixed_wing else None)
+            frame.battery, flying_power=fixed_wing.flying_power(frame) if frame.is_fixed_wing else None,
+            floor_fraction=self.battery_floor)
         self._by_body[body_id] = ("uav", str(uav_id))
         return vehicle
 
