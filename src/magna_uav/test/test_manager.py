@@ -237,6 +237,23 @@ def test_set_mission_flies_take_off_path_and_landing_on_board():
     assert min(np.linalg.norm(p - [2, 2, 3]) for p in reached) <= config.accepted_target_radius
 
 
+def test_set_mission_on_a_landed_uav_takes_off_first_as_px4_mission_mode_does():
+    from magna_uav.goals import mission_role
+
+    manager, world, uavs, recorder, config = setup([[0, 0, 0]])
+    role = mission_role('{"path": [[2, 0, 3], [2, 2, 3]]}', config)  # no take-off asked, as the original's missions
+    reached = []
+    result = fly(manager, role, feedback=lambda step: reached.append(uavs[0].position.copy()))
+    assert result.outcome == "succeeded", result.message
+    assert min(np.linalg.norm(p - [2, 2, 3]) for p in reached) <= config.accepted_target_radius
+
+
+def test_a_path_for_a_landed_uav_ends_aborted_with_the_reason_instead_of_waiting():
+    manager, world, uavs, recorder, config = setup([[0, 0, 0]])
+    result = fly(manager, FollowPathRole([[2, 0, 3]], config.accepted_target_radius))
+    assert result.outcome == "aborted" and "landed" in result.message and "take off" in result.message
+
+
 @pytest.mark.parametrize(("text", "reason"), [
     ("not json", "is not JSON"),
     ('{"path": [[1, 2]]}', "list of \\[x, y, z\\] points"),

@@ -131,6 +131,10 @@ class FollowPathRole(Role):
 
     def _step(self, view, now, elapsed):
         own = view.own
+        if elapsed == 0.0 and own.ual_state in (LANDED_ARMED, LANDED_DISARMED):
+            # UAL refuses waypoints on the ground: waiting would hang the mission, so say why and end
+            return RoleStep(WAIT, outcome=ABORTED, message="the UAV is landed: a path needs it flying (take off "
+                                                           "first)")
         self.tracker.update(own.position)
         percent = 100.0 * self.tracker.index / len(self.waypoints)
         if self.tracker.done:
@@ -279,6 +283,10 @@ class OnBoardMissionRole(Role):
 
     name = "set_mission"
 
+    # PX4's mission mode takes a landed vehicle up to MIS_TAKEOFF_ALT (2.5 m by default) before the first item
+    # that is not a take-off; the original's set_mission relied on it (it never asked for a take-off itself)
+    IMPLICIT_TAKEOFF_HEIGHT = 2.5
+
     def __init__(self, roles: list[Role]):
         super().__init__(0.0)
         if not roles:
@@ -286,6 +294,9 @@ class OnBoardMissionRole(Role):
         self.roles, self.index = list(roles), 0
 
     def _step(self, view, now, elapsed):
+        if elapsed == 0.0 and view.own.ual_state in (LANDED_ARMED, LANDED_DISARMED) \
+                and not isinstance(self.roles[0], TakeOffRole):
+            self.roles.insert(0, TakeOffRole(self.IMPLICIT_TAKEOFF_HEIGHT))
         step = self.roles[self.index].step(view, now)
         done_before = self.index
         percent = 100.0 * (done_before + step.percent / 100.0) / len(self.roles)
