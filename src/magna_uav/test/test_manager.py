@@ -302,3 +302,24 @@ def test_a_stale_hold_that_reaches_the_ual_after_the_waypoint_only_delays_it():
     assert result.outcome == "succeeded", result.message
     assert uav.calls.count("go_to_waypoint") >= 2, "the waypoint was sent again"
     assert uav.position[2] - held[2] == pytest.approx(3.0, abs=config.accepted_target_radius)
+
+
+def test_a_path_that_comes_no_nearer_its_waypoint_ends_aborted_as_stuck_instead_of_flying_on():
+    from magna_uav.roles import STALL_TIME
+    from magna_uav.world_view import AgentState
+
+    view = WorldView(1)
+    view.update_agent(AgentState(1, position=[0, 0, 3], ual_state=FLYING_AUTO))
+    role = FollowPathRole([[10, 0, 3]], 0.9)
+    t, step = 0.0, role.step(view, 0.0)
+    while step.outcome is None and t < 2 * STALL_TIME:  # the UAV never moves: held by something
+        t += 0.5
+        step = role.step(view, t)
+    assert step.outcome == "aborted" and t == pytest.approx(STALL_TIME, abs=0.5)
+    assert "stuck: waypoint 1 of 1 came no nearer than 10.00 m" in step.message
+
+
+def test_the_smoothed_paths_last_stretch_aims_at_the_waypoint_itself():
+    role = FollowPathRole([[0, 0, 3], [10, 0, 3], [10, 10, 3]], 0.9, smooth_path_mode=3)
+    target = role.waypoints[1]
+    assert np.array_equal(role._carrot(target + [-0.5, 1.5, 0], target), target)

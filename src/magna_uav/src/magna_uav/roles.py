@@ -21,6 +21,9 @@ from magna_uav.world_view import WorldView
 
 # uav_abstraction_layer/State constants (kept here so the roles need no ROS)
 LANDED_DISARMED, LANDED_ARMED, TAKING_OFF, FLYING_AUTO, FLYING_MANUAL, LANDING = 1, 2, 3, 4, 5, 6
+# A path whose current waypoint comes no nearer by STALL_PROGRESS metres in STALL_TIME seconds is stuck (an
+# unreachable waypoint: inside an obstacle, or beyond what the airframe can turn into); it ends aborted.
+STALL_TIME, STALL_PROGRESS = 120.0, 0.1
 
 SUCCEEDED, ABORTED = "succeeded", "aborted"
 
@@ -128,6 +131,7 @@ class FollowPathRole(Role):
         self.smooth = bool(smooth_path_mode) and len(self.smoothed) > len(self.waypoints)
         self.lookahead = lookahead  # m along the smoothed path ahead of the UAV
         self.sent_waypoint: int | None = None
+        self._progress = (-1, math.inf, 0.0)  # (waypoint index, best distance to it, role time of that best)
 
     def _step(self, view, now, elapsed):
         own = view.own
@@ -144,10 +148,25 @@ class FollowPathRole(Role):
             reached = f"{self.tracker.index} of {len(self.waypoints)} waypoints"
             return RoleStep(HOVER, percent=percent, outcome=ABORTED, message=f"{reached} within {self.duration:g} s")
         target = self.waypoints[self.tracker.index]
+        stalled = self._stalled(float(np.linalg.norm(target - own.position)), elapsed)
+        if stalled:
+            return RoleStep(HOVER, percent=percent, outcome=ABORTED, message=stalled)
         if self.dynamic == "position":
             return RoleStep(WAYPOINT, goal=Goal(position=target), percent=percent)
         carrot = self._carrot(own.position, target) if self.smooth else target
         return RoleStep(FLY, goal=Goal(position=carrot), percent=percent)
+
+    def _stalled(self, distance: float, elapsed: float) -> str:
+        """Why the role is stuck ("" while it is not): no waypoint reached and the current one come no nearer
+        than before for STALL_TIME. A mission must end with a reason, never fly on for ever."""
+        index, best, since = self._progress
+        if index != self.tracker.index or distance < best - STALL_PROGRESS:
+            self._progress = (self.tracker.index, distance, elapsed)
+            return ""
+        if elapsed - since < STALL_TIME:
+            return ""
+        return (f"stuck: waypoint {index + 1} of {len(self.waypoints)} came no nearer than {best:.2f} m in "
+                f"{STALL_TIME:g} s (accepted radius {self.tracker.accepted_radius:g} m)")
 
     def _carrot(self, position, target):
         """A point `lookahead` metres along the smoothed path past the point nearest the UAV,
@@ -157,7 +176,11 @@ class FollowPathRole(Role):
         start = int(np.argmin(distances[:limit + 1]))
         steps = np.linalg.norm(np.diff(self.smoothed[start:limit + 1], axis=0), axis=1)
         ahead = int(np.searchsorted(np.cumsum(steps), self.lookahead))
-        return self.smoothed[min(start + ahead, limit)]
+        if start + ahead >= limit:
+            # the last stretch goes to the waypoint itself: the spline's nearest sample may lie farther from it
+            # than the accepted radius, and aiming there the UAV would never reach it (seen circling for hours)
+            return target
+        return self.smoothed[start + ahead]
 
 
 class FollowAgentAtDistanceRole(Role):
