@@ -301,8 +301,11 @@ def test_steps_from_the_bag_match_steps_from_the_csvs(recorded_run):
         gap_off = np.nan_to_num(np.abs(bag.obstacle_gap[posed] - csv.obstacle_gap[posed])).max(axis=1)
         assert np.mean(gap_off <= POSE_TOLERANCE) >= 0.95
         assert np.allclose(bag.obstacle_gap[same], csv.obstacle_gap[same], atol=1e-9, equal_nan=True)
-        assert Counter(np.isnan(bag.obstacle_gap[posed]).sum(axis=1)) == \
-            Counter(np.isnan(csv.obstacle_gap[posed]).sum(axis=1))
+        # the same number of known obstacles per step, but where the manager heard the latched markers a step
+        # before the bag stamped them (a loaded machine): the bag cannot know when the manager got them
+        unknown_bag, unknown_csv = (np.isnan(g[posed]).sum(axis=1) for g in (bag.obstacle_gap, csv.obstacle_gap))
+        assert np.mean(unknown_bag == unknown_csv) >= 0.95, Counter(zip(unknown_bag, unknown_csv, strict=True))
+        assert (unknown_bag >= unknown_csv).all()  # the bag may only lag: never an obstacle the manager lacked
 
 
 def test_the_input_vectors_from_bag_and_csv_agree(recorded_run):

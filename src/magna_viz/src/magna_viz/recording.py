@@ -13,8 +13,8 @@ A simulation folder (magna_master.storage) holds:
 Either the bag or the CSVs may be missing (`magna run --no-bag` / `--no-data`): what exists is used and
 `Recording.notes` says what is missing and what that costs. Per UAV, positions and velocities come from
 the bag (the simulator's 30 Hz) when it has them, else from the CSV. So do distances: computed from the
-bag as the managers' evaluator computes them (centre distance to every other UAV; distance to the bounding
-spheres of the obstacles of /magna/world/markers), which covers the whole flight where a manager records
+bag as the managers' evaluator computes them (centre distance to every other UAV; distance to the real
+shape of the obstacles of /magna/world/markers), which covers the whole flight where a manager records
 rows only while a role runs, and agrees with the CSV's gaps where both exist (within the managers' pose
 age, centimetres); the CSV's gaps and collision flags when the bag lacks the UAV's poses or the markers.
 The state-machine timeline, paths and goals exist only in the bag. Times are simulated seconds, the
@@ -95,7 +95,7 @@ class Proximity:
     time: np.ndarray
     uav_distance: np.ndarray  # centre to centre, nearest other UAV by gap (NaN: none known)
     uav_threshold: np.ndarray  # the pair's safety radii summed
-    obstacle_distance: np.ndarray  # own centre to the nearest obstacle's bounding sphere (NaN: none)
+    obstacle_distance: np.ndarray  # own centre to the nearest obstacle's surface (real shape; NaN: none)
     obstacle_threshold: float  # own safety radius
     uav_contact: np.ndarray  # bool per sample: touching another UAV
     obstacle_contact: np.ndarray  # bool per sample: touching an obstacle
@@ -459,17 +459,18 @@ def _csv_proximity(frame, uav: int, radii: dict[int, float], source: str) -> Pro
                      collided & with_obstacle, source)
 
 
-def _obstacle_epochs(markers: list) -> list[tuple[float, np.ndarray, np.ndarray]]:
-    """(from time, centres (k, 3), radii (k,)) after each MarkerArray, as the managers' ObstacleMarkers keep them."""
+def _obstacle_epochs(markers: list) -> list[tuple[float, object]]:
+    """(from time, the obstacles' shapes) after each MarkerArray, as the managers' ObstacleMarkers keep them: the
+    distances are measured to each obstacle's real shape, as the managers' evaluator measures them."""
     from magna_uav.ros_data import ObstacleMarkers
+    from magna_uav.shapes import ShapeTable
 
     table = ObstacleMarkers()
     epochs = []
     for t, message in markers:
         table.apply(message)
         obstacles = table.obstacles()
-        epochs.append((t, np.array([o.position for o in obstacles], dtype=float).reshape(-1, 3),
-                       np.array([o.radius for o in obstacles], dtype=float)))
+        epochs.append((t, ShapeTable([o.shape for o in obstacles]) if obstacles else None))
     return epochs
 
 
@@ -487,12 +488,12 @@ def _bag_proximity(record: UavRecord, uavs: dict[int, UavRecord], epochs: list) 
         better = np.isfinite(d) & (gap < best_gap)
         best_gap[better], distance[better], threshold[better] = gap[better], d[better], pair
     obstacle = np.full(len(t), np.nan)
-    for k, (since, centres, radii) in enumerate(epochs):
+    for k, (since, shapes) in enumerate(epochs):
         until = epochs[k + 1][0] if k + 1 < len(epochs) else math.inf
-        inside = (t >= since) & (t < until)
-        if len(radii) and inside.any():
-            d = np.linalg.norm(p[inside, None, :] - centres[None, :, :], axis=2) - radii[None, :]
-            obstacle[inside] = d.min(axis=1)
+        inside = np.flatnonzero((t >= since) & (t < until))
+        if shapes is not None:
+            for i in inside:
+                obstacle[i] = float(shapes.signed_distances(p[i]).min()) if np.isfinite(p[i]).all() else math.nan
     own = record.safety_radius
     with np.errstate(invalid="ignore"):  # NaN compares False: no contact where nothing is known
         return Proximity(t, distance, threshold, obstacle, own, distance < threshold, obstacle < own,
