@@ -100,6 +100,20 @@ def test_a_ground_station_that_reports_when_stopped_keeps_its_outcome(tmp_path, 
     assert "stopped" in result["message"] and not result["success"]
 
 
+def test_a_ground_station_still_starting_is_asked_again_until_its_stop_service_answers(tmp_path, leak_token):
+    asked = []
+
+    def stop_service_up_at_the_third_call():
+        asked.append(time.monotonic())
+        return len(asked) >= 3  # not served yet twice: the ground station was still starting
+
+    core = core_for(tmp_path, SLEEPER, time_limit=0.3, stop_grace=5.0,
+                    stop_ground_station=stop_service_up_at_the_third_call)
+    result = core.run()
+    assert len(asked) == 3 and result["gs_stop_called"]
+    assert asked[1] - asked[0] >= sv.STOP_RETRY * 0.9
+
+
 def test_without_a_stop_service_the_message_says_so(tmp_path, leak_token):
     result = core_for(tmp_path, SLEEPER, time_limit=0.3, stop_grace=0.2).run()
     assert not result["gs_stop_called"] and "is not served" in result["message"]

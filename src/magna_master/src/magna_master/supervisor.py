@@ -43,6 +43,7 @@ from magna_master.storage import RESULT_FILE, atomic_write_text
 TOKEN_ENV = "MAGNA_SIM_TOKEN"
 TERMINATION_SERVICE = "/magna/master/simulation_termination"
 GS_STOP_SERVICE = "/magna/gs/stop"
+STOP_RETRY = 0.2  # wall s between calls of the stop service while it is not served yet
 
 # How a simulation ended (result.json "termination").
 GROUND_STATION = "ground_station"  # the ground station called the termination service
@@ -244,12 +245,21 @@ class SupervisorCore:
                 break
             if self.time_limit is not None and time.monotonic() - self._started >= self.time_limit:
                 timed_out = True
-                try:
-                    gs_stop_called = bool(self.stop_ground_station())
-                except Exception:  # a broken ground station must not keep the batch waiting
-                    gs_stop_called = False
-                self._wait(self.stop_grace, lambda: self.termination is not None or self.launch.poll() is not None
-                           or self._stop.is_set())
+                grace_ends = time.monotonic() + self.stop_grace
+
+                def ended():
+                    return self.termination is not None or self.launch.poll() is not None or self._stop.is_set()
+
+                # a ground station still starting serves its stop service a moment later: ask again until it
+                # does (within the grace), so that it still saves what it has instead of being killed
+                while not gs_stop_called and not ended() and time.monotonic() < grace_ends:
+                    try:
+                        gs_stop_called = bool(self.stop_ground_station())
+                    except Exception:  # a broken ground station must not keep the batch waiting
+                        gs_stop_called = False
+                    if not gs_stop_called:
+                        self._wait(min(STOP_RETRY, max(0.0, grace_ends - time.monotonic())), ended)
+                self._wait(max(0.0, grace_ends - time.monotonic()), ended)
                 break
             self._wake.wait(self.poll)
             self._wake.clear()
