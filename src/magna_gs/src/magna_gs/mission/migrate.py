@@ -28,8 +28,9 @@ renamed keys back).
 from __future__ import annotations
 
 import copy
-from dataclasses import dataclass, field
 from typing import Any
+
+from magna_worlds.migrate import Migration  # the same record of what a migration changed, for worlds and missions
 
 LEGACY_AGENTS_KEY = "UAVs_Config"
 AGENTS_KEY = "Agents_Config"
@@ -52,26 +53,6 @@ NAME_TYPES = ("take_off", "land", "follow_path", "basic_move", "save_csv", "wait
 # Until April 2019 the world answered "path" with the geometry's (only) zigzag path and "random" with one random
 # pose, reading no fourth item; files of that time write three. The fourth item each kind takes now:
 THREE_ITEM_DEFINITION_ARG = {"path": (None, "the geometry's zigzag path"), "random": (1, "one random pose")}
-
-
-@dataclass
-class Migration:
-    data: Any  # the migrated JSON (a deep copy; the input is untouched)
-    original: Any = None  # the input, as read
-    changes: list[str] = field(default_factory=list)  # human-readable, each starting with the JSON path
-    renamed: dict[str, str] = field(default_factory=dict)  # JSON path now -> JSON path in the file
-
-    @property
-    def changed(self) -> bool:
-        return bool(self.changes)
-
-    def original_path(self, path: str) -> str:
-        """The file's JSON path for a path of the migrated data (renamed keys mapped back)."""
-        best = ""
-        for new in self.renamed:
-            if (path == new or path.startswith(new + ".") or path.startswith(new + "[")) and len(new) > len(best):
-                best = new
-        return self.renamed[best] + path[len(best):] if best else path
 
 
 def migrate(data: Any) -> Migration:
