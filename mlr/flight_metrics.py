@@ -11,7 +11,7 @@ from pathlib import Path
 
 from mlr.nn_mission import FlyError
 
-TARGET_RATIO = 0.95  # DESIGN.md §6: missions flown by the network collision-free at >= 95% of ORCA's rate
+TARGET_RATIO = 0.95  # the project's target: missions flown by the network collision-free at >= 95% of ORCA's rate
 # Simulations that did not run to a mission outcome say nothing about the algorithm: left out.
 NOT_FLOWN = ("interrupted", "crashed", "start_failed", "supervisor_failed")
 TIME_TO_GOAL = ("per UAV and simulation: the time of the UAV's last `path` control step minus its first, "

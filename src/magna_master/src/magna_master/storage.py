@@ -1,6 +1,6 @@
 """Where simulation batches keep their data, and what happens when a run would meet older data.
 
-The tree (DESIGN.md §2)::
+The tree (src/magna_master/README.md, Storage)::
 
     <data root>/Simulations/<world>/<subworld>/<mission>/<submission>/<name>/dataset_<n>/
         summary.csv                  one row per simulation, rewritten atomically after each one

@@ -1,4 +1,5 @@
-"""The world file as plain typed objects, checked once by `loader` (the ROS-MAGNA world format, DESIGN.md §3).
+"""The world file as plain typed objects, checked once by `loader` (the ROS-MAGNA world format:
+worlds/README.md).
 
 World -> Volume -> Geometry -> PoseSetSpec. Positions are metres, angles radians,
 colours 0..1 (the files write 0-255). Nothing here is random: `generate` turns
