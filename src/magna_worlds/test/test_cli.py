@@ -218,7 +218,77 @@ def test_invalid_json_names_the_file_and_the_place(tmp_path, capsys):
 def test_missing_file_is_a_usage_error(tmp_path, capsys):
     status, _, err = magna(capsys, "world", "check", tmp_path / "absent.json")
     assert status == 2
-    assert err.splitlines() == [f"magna world: {tmp_path / 'absent.json'}: no such file; check the path"]
+    assert err.splitlines() == [f"magna world: {tmp_path / 'absent.json'}: no such file; check the path, or give a "
+                                "world name WORLD/SUBWORLD (e.g. Gym/Four_Cylinders)"]
+
+
+# --- worlds by name, as `magna run` takes them ----------------------------------------------------------------------
+
+def test_check_takes_a_project_world_by_name(capsys):
+    status, out, err = magna(capsys, "world", "check", "Gym/Four_Cylinders")
+    assert status == 0, err
+    assert out.splitlines()[0] == f"file        {ROOT / 'worlds' / 'Gym' / 'Four_Cylinders.json'}"
+    # a trailing .json names the same world
+    assert magna(capsys, "world", "check", "Gym/Four_Cylinders.json")[1].splitlines()[0] == out.splitlines()[0]
+
+
+def test_check_and_draw_take_a_corpus_world_by_name_with_search_path(tmp_path, capsys):
+    status, out, err = magna(capsys, "world", "check", "Gym/1Obs_Central_Cylinder", "--search-path", CORPUS, "--json")
+    assert status == 0, err
+    assert json.loads(out)["file"] == str(CORPUS / "Worlds" / "Gym" / "1Obs_Central_Cylinder.json")
+    picture = tmp_path / "gym.png"
+    status, out, err = magna(capsys, "world", "draw", "Gym/1Obs_Central_Cylinder", "--search-path", CORPUS,
+                             "-o", picture)
+    assert status == 0, err
+    assert out.strip() == str(picture) and picture.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_a_search_path_comes_before_the_project_worlds(tmp_path, capsys):
+    mine = write_world(tmp_path / "worlds", small_world(), "Gym", "Four_Cylinders")  # DIR/worlds/WORLD/SUBWORLD.json
+    status, out, err = magna(capsys, "world", "check", "Gym/Four_Cylinders", "--search-path", tmp_path)
+    assert status == 0, err
+    assert out.splitlines()[0] == f"file        {mine}"
+
+
+def test_includes_are_looked_up_in_the_search_path_too(tmp_path, capsys):
+    parts = tmp_path / "parts"
+    write_world(parts, small_world(), "Parts", "Inner")
+    outer = small_world()
+    outer["scenario"]["volumes"][0].update(name="Outer", prefix="O")
+    outer["scenario"]["volumes"].append({"name": "JSON", "world": "Parts", "subworld": "Inner"})
+    path = write_world(tmp_path / "elsewhere", outer, "Main", "World")  # its own root has no Parts/
+    status, out, err = magna(capsys, "world", "check", path, "--search-path", parts)
+    assert status == 0, err
+    assert f"included    {parts / 'Parts' / 'Inner.json'}" in out
+
+
+@pytest.mark.parametrize("action", [["check"], ["draw", "-o", "unused.png"]])
+def test_a_name_found_nowhere_lists_every_place_looked_at(action, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    status, out, err = magna(capsys, "world", *action, "Gym/Four_Cylinder", "--search-path", CORPUS)
+    assert status == 2 and out == ""
+    lines = err.splitlines()
+    assert len(lines) == 1
+    assert lines[0].startswith("magna world: Gym/Four_Cylinder: no such file, nor a world WORLD/SUBWORLD of that "
+                               "name; looked at ")
+    for place in (CORPUS / "Worlds", CORPUS, ROOT / "worlds"):
+        assert str(place / "Gym" / "Four_Cylinder.json") in lines[0]
+    assert lines[0].endswith("add the folder holding it with --search-path DIR")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_missing_search_path_folder_is_a_usage_error(tmp_path, capsys):
+    status, _, err = magna(capsys, "world", "check", "Gym/Four_Cylinders", "--search-path", tmp_path / "nope")
+    assert status == 2
+    assert err.startswith(f"magna world: --search-path {tmp_path / 'nope'}: no such folder")
+
+
+def test_the_issue_command_works_from_the_repository_root():
+    """`./magna world check Gym/Four_Cylinders` said "no such file" (issue 23)."""
+    done = subprocess.run([str(ROOT / "magna"), "world", "check", "Gym/Four_Cylinders"], cwd=ROOT,
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert "worlds/Gym/Four_Cylinders.json" in done.stdout.splitlines()[0]
 
 
 def test_through_the_magna_wrapper(tmp_path):
@@ -243,7 +313,12 @@ def test_help_everywhere_with_examples(capsys):
         status, out, _ = magna(capsys, *argv)
         assert status == 0
         assert f"usage: magna {' '.join(argv[:-1])}" in out
-        assert "examples:" in out and "magna world " in out.split("examples:")[1]
+        examples = out.split("examples:")[1]
+        assert "./magna world " in examples
+        for line in examples.splitlines():  # every example names a file or world that exists
+            for word in line.split("#")[0].split():
+                if word.startswith(("worlds/", "../shared/")):
+                    assert (ROOT / word).exists(), line
     status, _, err = magna(capsys, "world")
     assert status == 2 and "ACTION" in err
     assert ("world", "magna_worlds.cli") in cli.COMMANDS

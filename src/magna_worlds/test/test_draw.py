@@ -158,7 +158,7 @@ def test_cli_draw_writes_refuses_and_forces(tmp_path, capsys):
 
     status, stdout, err = magna(capsys, "world", "draw", world, "-o", out, "--seed", "5")
     assert status == 2 and stdout == ""
-    assert err.splitlines() == [f"magna world: {out}: already exists; pass --force to overwrite it"]
+    assert err.splitlines() == [f"magna world: {out} already exists; pass --force to replace it"]
     assert out.read_bytes() == first
 
     status, stdout, err = magna(capsys, "world", "draw", world, "-o", out, "--seed", "5", "--force")

@@ -1,12 +1,14 @@
-"""`magna world`: check a world file and say what it holds, or draw it.
+"""`magna world`: check a world and say what it holds, or draw it.
 
-    magna world check FILE [--seed N] [--json] [--strict]
-    magna world draw FILE -o world.png [--seed N] [--elev E] [--azim A] [--force]
+    magna world check WORLD [--search-path DIR ...] [--seed N] [--json] [--strict]
+    magna world draw WORLD -o world.png [--search-path DIR ...] [--seed N] [--elev E] [--azim A] [--force]
 
-A bad world file gets one line on stderr, `magna world: <file>: <json path>: <message>`,
-and exit status 2 (a `magna_master.cli.UsageError`, printed by `run`); nothing is written.
-What the original ROS-MAGNA tolerated gets one line each on stderr,
-`magna world: warning: <file>: <json path>: <what MAGNA does>`; `--strict` refuses it (exit 2).
+WORLD is a world file, or a name WORLD/SUBWORLD looked up as `magna run` does: WORLD/SUBWORLD.json
+in each --search-path DIR (its worlds/ or Worlds/ first, then DIR itself), then in the project's
+worlds/ and $MAGNA_WORLDS_PATH. A bad world file gets one line on stderr,
+`magna world: <file>: <json path>: <message>`, and exit status 2 (a `magna_master.cli.UsageError`,
+printed by `run`); nothing is written. What the original ROS-MAGNA tolerated gets one line each on
+stderr, `magna world: warning: <file>: <json path>: <what MAGNA does>`; `--strict` refuses it (exit 2).
 """
 from __future__ import annotations
 
@@ -17,17 +19,25 @@ import time
 from collections import Counter
 from pathlib import Path
 
-HELP = "check a world file (load, lay out poses and obstacles, summarise) or draw it to a PNG"
+from magna_common.cli_vocabulary import OutputExists, add_force, add_output, add_search_path, check_output
 
-_EPILOG = """\
-examples:
-  magna world check worlds/Gym/1Obs_Central_Cylinder.json
-  magna world check worlds/Delivery/Delivery.json --seed 3 --json
-  magna world draw worlds/Delivery/Delivery.json -o delivery.png
-  magna world draw worlds/Gym/Empty.json -o gym.png --elev 60 --azim -90 --force
+HELP = "check a world (a file or a WORLD/SUBWORLD name: load, lay out poses and obstacles, summarise) or draw it"
+
+_LOOKUP = """\
+WORLD is a world file or a name WORLD/SUBWORLD, looked up as WORLD/SUBWORLD.json in each
+--search-path DIR (its worlds/ or Worlds/ first, then DIR itself), then in the project's worlds/
+and $MAGNA_WORLDS_PATH, as `magna run --world` does.
 """
 
-_CHECK_EPILOG = """\
+_EPILOG = _LOOKUP + """
+examples:
+  ./magna world check Gym/Four_Cylinders
+  ./magna world check worlds/SolarPlant/Panels.json --seed 3 --json
+  ./magna world check Delivery/Delivery --search-path ../shared/ros_magna_corpus
+  ./magna world draw Gym/Central_Obstacle_Torus -o /tmp/torus.png --force
+"""
+
+_CHECK_EPILOG = _LOOKUP + """
 The summary lists the file, its format (an older format is migrated first: the changes
 are listed), the worlds it includes, the boundaries, origin_geo, then per volume its
 geometries (shape, tf frame, poses per pose-set type, obstacles), the totals and the
@@ -37,22 +47,25 @@ outside them, ...) is loaded and reported as one warning each on stderr,
 A bad file prints one line `magna world: FILE: JSON.PATH: message` and exits 2.
 
 examples:
-  magna world check worlds/Gym/1Obs_Central_Cylinder.json
-  magna world check worlds/Delivery/Delivery.json --seed 3
-  magna world check worlds/Delivery/Delivery.json --json | python3 -m json.tool
-  magna world check my_new_world.json --strict     # for authors: warnings are errors
+  ./magna world check Gym/Four_Cylinders
+  ./magna world check worlds/Inspection/WindTurbine.json --seed 3
+  ./magna world check Gym/1Obs_Central_Cylinder --search-path ../shared/ros_magna_corpus --json
+  ./magna world check worlds/Tube/Random_Bricks.json --strict     # for authors: warnings are errors
 """
 
-_DRAW_EPILOG = """\
+_DRAW_EPILOG = _LOOKUP + """
 Geometries are drawn as translucent surfaces in their colour, obstacles as dark
 solids, poses as dots (one colour per pose set), zigzags as lines with their start
-marked. The view fits the content, with the same scale on every axis.
+marked. The view fits the content, with the same scale on every axis. An existing
+picture is replaced only with --force.
 
 examples:
-  magna world draw worlds/Delivery/Delivery.json -o delivery.png
-  magna world draw worlds/Gym/1Obs_Central_Cylinder.json -o gym.png --seed 4 --force
-  magna world draw worlds/Gym/Empty.json -o top.png --elev 90 --azim -90   # seen from above
+  ./magna world draw worlds/SolarPlant/Panels.json -o /tmp/panels.png --force
+  ./magna world draw Delivery/Delivery --search-path ../shared/ros_magna_corpus -o /tmp/delivery.png --force
+  ./magna world draw Gym/Four_Cylinders -o /tmp/top.png --elev 90 --azim -90 --force   # seen from above
 """
+
+_WORLD_HELP = "world file, or WORLD/SUBWORLD name (e.g. Gym/Four_Cylinders)"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -61,28 +74,30 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     sub = parser.add_subparsers(dest="world_command", metavar="ACTION", title="actions")
     sub.required = True
 
-    check = sub.add_parser("check", help="load and lay out a world file; print what it holds",
-                           description="Load and lay out a world file, then print what it holds.",
+    check = sub.add_parser("check", help="load and lay out a world; print what it holds",
+                           description="Load and lay out a world, then print what it holds.",
                            epilog=_CHECK_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
-    check.add_argument("file", metavar="FILE", help="world JSON file (e.g. worlds/<world>/<subworld>.json)")
+    check.add_argument("file", metavar="WORLD", help=_WORLD_HELP)
+    add_search_path(check, what="worlds")
     _seed(check)
     check.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     check.add_argument("--strict", action="store_true",
                        help="refuse what would be a warning (exit 2): for authors of new world files")
     check.set_defaults(_world_run=_check)
 
-    draw = sub.add_parser("draw", help="draw a world file to a PNG",
-                          description="Draw a world file (geometries, obstacles, poses) to a PNG picture.",
+    draw = sub.add_parser("draw", help="draw a world to a PNG",
+                          description="Draw a world (geometries, obstacles, poses) to a PNG picture.",
                           epilog=_DRAW_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
-    draw.add_argument("file", metavar="FILE", help="world JSON file (e.g. worlds/<world>/<subworld>.json)")
-    draw.add_argument("-o", "--output", required=True, metavar="PNG", help="picture to write (PNG)")
+    draw.add_argument("file", metavar="WORLD", help=_WORLD_HELP)
+    add_output(draw, required=True, metavar="PNG", help="picture to write (PNG)")
+    add_force(draw, help="replace PNG if it exists")
+    add_search_path(draw, what="worlds")
     _seed(draw)
     draw.add_argument("--elev", type=float, default=25.0, metavar="DEG",
                       help="view elevation above the xy plane, degrees (default: %(default)s; 90: from above)")
     draw.add_argument("--azim", type=float, default=-60.0, metavar="DEG",
                       help="view azimuth about z, degrees (default: %(default)s)")
     draw.add_argument("--title", help="title over the picture (default: file name, seed and counts)")
-    draw.add_argument("--force", action="store_true", help="overwrite PNG if it exists")
     draw.set_defaults(_world_run=_draw)
 
 
@@ -103,9 +118,46 @@ def run(args) -> int:
         return 2
 
 
-# --- check ----------------------------------------------------------------------------------------------------
+# --- finding and loading -------------------------------------------------------------------------------------------
 
-def _load(path: str, seed: int, strict: bool = False):
+def world_roots(search_dirs) -> list[Path]:
+    """Where world names are looked up: `magna run`'s order (magna_master.batch.world_roots); UsageError for a
+    --search-path folder that does not exist."""
+    from magna_master.batch import world_roots as run_world_roots
+    from magna_master.cli import UsageError
+
+    for directory in search_dirs:
+        if not Path(directory).expanduser().is_dir():
+            raise UsageError(f"--search-path {directory}: no such folder; give a folder holding worlds/ (or "
+                             "Worlds/, or the WORLD folders themselves)")
+    return run_world_roots(search_dirs)
+
+
+def find_world(spec: str, search_dirs=(), option: str = "") -> Path:
+    """The world file `spec` names: an existing file as it is, else a name WORLD/SUBWORLD (a trailing .json
+    dropped) looked up in `world_roots(search_dirs)`. UsageError naming every place looked at."""
+    from magna_master.cli import UsageError
+    from magna_worlds.loader import candidate_paths, find_world_file
+
+    roots = world_roots(search_dirs)
+    path = Path(spec).expanduser()
+    if path.is_file():
+        return path
+    label = f"{option} {spec}" if option else spec
+    parts = spec.strip().removesuffix(".json").split("/")
+    if len(parts) != 2 or not all(p.strip() for p in parts) or any(p in (".", "..") for p in parts):
+        raise UsageError(f"{label}: no such file; check the path, or give a world name WORLD/SUBWORLD "
+                         "(e.g. Gym/Four_Cylinders)")
+    world, subworld = parts
+    found = find_world_file(world, subworld, roots)
+    if found is None:
+        raise UsageError(f"{label}: no such file, nor a world WORLD/SUBWORLD of that name; looked at "
+                         f"{candidate_paths(world, subworld, roots)}. Give a file path, or add the folder "
+                         "holding it with --search-path DIR")
+    return found
+
+
+def _load(spec: str, seed: int, strict: bool = False, search_dirs=()):
     """(resolved world, load seconds, resolve seconds); a WorldError becomes a one-line usage error.
     Warnings go to stderr, one line each."""
     from magna_master.cli import UsageError
@@ -113,9 +165,10 @@ def _load(path: str, seed: int, strict: bool = False):
     from magna_worlds.generate import resolve_world
     from magna_worlds.loader import load_world
 
+    path = find_world(spec, search_dirs)
     try:
         start = time.perf_counter()
-        world = load_world(path, strict=strict)
+        world = load_world(path, world_roots(search_dirs), strict=strict)  # includes: the same folders
         loaded = time.perf_counter()
         resolved = resolve_world(world, seed, strict=strict)
         done = time.perf_counter()
@@ -125,6 +178,8 @@ def _load(path: str, seed: int, strict: bool = False):
         print(f"magna world: warning: {' '.join(warning.split())}", file=sys.stderr)
     return resolved, loaded - start, done - loaded
 
+
+# --- check ----------------------------------------------------------------------------------------------------
 
 def summary(resolved, load_seconds: float = 0.0, resolve_seconds: float = 0.0) -> dict:
     """What `check` reports, as JSON-ready data."""
@@ -211,7 +266,7 @@ def format_summary(data: dict) -> str:
 
 
 def _check(args) -> int:
-    resolved, load_seconds, resolve_seconds = _load(args.file, args.seed, args.strict)
+    resolved, load_seconds, resolve_seconds = _load(args.file, args.seed, args.strict, args.search_path)
     data = summary(resolved, load_seconds, resolve_seconds)
     print(json.dumps(data, indent=2) if args.json else format_summary(data))
     return 0
@@ -227,9 +282,11 @@ def _draw(args) -> int:
         raise UsageError(f"-o {output}: the picture is a PNG; name it *.png")
     if not output.parent.is_dir():
         raise UsageError(f"-o {output}: folder {output.parent} does not exist; create it first")
-    if output.exists() and not args.force:  # before any work: nothing is drawn for nothing
-        raise UsageError(f"{output}: already exists; pass --force to overwrite it")
-    resolved, _, _ = _load(args.file, args.seed)
+    try:  # before any work: nothing is drawn for nothing
+        check_output(output, args.force)
+    except OutputExists as error:
+        raise UsageError(str(error)) from None
+    resolved, _, _ = _load(args.file, args.seed, search_dirs=args.search_path)
 
     from magna_worlds.draw import draw_world  # matplotlib: only when drawing
 
