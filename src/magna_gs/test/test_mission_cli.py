@@ -79,7 +79,7 @@ def test_world_problems_come_after_the_summary_and_exit_2(capsys):
 @pytest.mark.parametrize("argv,message", [
     (["Gym/Nothing"], "magna mission: Gym/Nothing: no such mission; looked at "),
     (["Gym/only_world", "--world", "Gym/Nowhere"], "magna mission: --world Gym/Nowhere: no such file, nor a world "
-                                                   "<world>/<subworld> of that name; looked at "),
+                                                   "WORLD/SUBWORLD of that name; looked at "),
 ])
 def test_names_that_are_nowhere(capsys, argv, message):
     status, out, err = magna(capsys, "mission", "check", *argv, "--search-path", CORPUS)
@@ -97,7 +97,7 @@ def test_draw_writes_a_png_and_refuses_to_overwrite_without_force(capsys, tmp_pa
     assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 10000
     status, out, err = magna(capsys, *argv)
     assert status == 2 and out == ""
-    assert err == f"magna mission: {picture}: already exists; pass --force to overwrite it\n"
+    assert err == f"magna mission: {picture} already exists; pass --force to replace it\n"
     assert picture.read_bytes() == data
     status, _, err = magna(capsys, *argv, "--force", "--title", "again")
     assert status == 0 and picture.read_bytes() != data
@@ -152,6 +152,49 @@ def test_help_lists_the_actions_with_examples(capsys):
     for argv in (["mission", "--help"], ["mission", "check", "--help"], ["mission", "draw", "--help"]):
         status, out, _ = magna(capsys, *argv)
         assert status == 0 and "examples:" in out
+        examples = out.split("examples:")[1]
+        assert "./magna mission " in examples
+        for word in examples.replace("\\\n", " ").split():  # every file an example names exists
+            if word.startswith(("missions/", "worlds/", "../shared/")):
+                assert (ROOT / word).exists(), word
+
+
+# --- the names `magna run` takes, with --search-path -----------------------------------------------------------
+
+def test_project_mission_and_world_by_name(capsys):
+    status, out, err = magna(capsys, "mission", "check", "Gym/2UAVs_Crossing_ORCA", "--world",
+                             "Gym/Central_Obstacle_Torus")
+    assert status == 0, err
+    lines = out.splitlines()
+    assert lines[0] == f"file        {ROOT / 'missions' / 'Gym' / '2UAVs_Crossing_ORCA.json'}"
+    assert lines[-1].startswith(f"world       {ROOT / 'worlds' / 'Gym' / 'Central_Obstacle_Torus.json'} (seed 0): ")
+
+
+def test_a_lowercase_tree_is_searched_as_magna_run_does(capsys, tmp_path):
+    (tmp_path / "missions" / "Gym").mkdir(parents=True)
+    (tmp_path / "worlds" / "Gym").mkdir(parents=True)
+    (tmp_path / "missions" / "Gym" / "Mine.json").write_text(
+        (CORPUS / "Missions" / "Gym" / "2UAVs_2paths_Central_Cylinder.json").read_text())
+    (tmp_path / "worlds" / "Gym" / "Mine.json").write_text(
+        (CORPUS / "Worlds" / "Gym" / "1Obs_Central_Cylinder.json").read_text())
+    status, out, err = magna(capsys, "mission", "check", "Gym/Mine", "--world", "Gym/Mine", "--search-path", tmp_path)
+    assert status == 0, err
+    assert out.splitlines()[0] == f"file        {tmp_path / 'missions' / 'Gym' / 'Mine.json'}"
+    assert out.splitlines()[-1].startswith(f"world       {tmp_path / 'worlds' / 'Gym' / 'Mine.json'} (seed 0): ")
+
+
+def test_a_missing_search_path_folder_is_a_usage_error(capsys, tmp_path):
+    for action in (["check"], ["draw", "-o", tmp_path / "m.png"]):
+        status, out, err = magna(capsys, "mission", *action, "Gym/2UAVs_Crossing_ORCA", "--search-path",
+                                 tmp_path / "nope")
+        assert status == 2 and out == ""
+        assert err.startswith(f"magna mission: --search-path {tmp_path / 'nope'}: no such folder")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_draw_needs_an_output(capsys):
+    status, _, err = magna(capsys, "mission", "draw", "Gym/2UAVs_Crossing_ORCA")
+    assert status == 2 and "-o/--output" in err
 
 
 def test_strict_check_refuses_a_warning_with_exit_2(capsys, write_mission, base_mission):

@@ -1,12 +1,11 @@
-"""`magna mission`: check a mission file (structure, and against a world), or draw its state machine.
+"""`magna mission`: check a mission (structure, and against a world), or draw its state machine.
 
     magna mission check MISSION [--world WORLD] [--search-path DIR ...] [--seed N] [--strict]
     magna mission draw MISSION -o mission.png [--search-path DIR ...] [--title T] [--force]
 
-MISSION and WORLD are files, or names as the hyperparameters give them
-(`Gym/2UAVs_2paths_Central_Cylinder`, `Gym/1Obs_Central_Cylinder`). Every problem is one
-line on stderr, `magna mission: <file>: <JSON path>: <message>`, and the exit status is 2;
-nothing is written.
+MISSION and WORLD are files, or names as `magna run` takes them (`Gym/2UAVs_2paths_Central_Cylinder`,
+`Gym/1Obs_Central_Cylinder`), looked up as `magna run` does. Every problem is one line on stderr,
+`magna mission: <file>: <JSON path>: <message>`, and the exit status is 2; nothing is written.
 """
 from __future__ import annotations
 
@@ -15,17 +14,27 @@ import sys
 from collections import Counter
 from pathlib import Path
 
-HELP = "check a mission file (structure, and against a world) or draw its state machine"
+from magna_common.cli_vocabulary import OutputExists, add_force, add_output, add_search_path, check_output
 
-_EPILOG = """\
-examples:
-  magna mission check Gym/2UAVs_2paths_Central_Cylinder --world Gym/1Obs_Central_Cylinder \\
-      --search-path ../shared/ros_magna_corpus
-  magna mission check missions/Gym/Two_Paths.json --world worlds/Gym/Four_Cylinders.json --seed 3
-  magna mission draw Delivery/2UAVs_follow_ap_safe --search-path ../shared/ros_magna_corpus -o delivery.png
+HELP = "check a mission (a file or a MISSION/SUBMISSION name; structure, and against a world) or draw it"
+
+_LOOKUP = """\
+MISSION is a mission file or a name MISSION/SUBMISSION, looked up as MISSION/SUBMISSION.json in
+each --search-path DIR (its missions/ or Missions/, and DIR itself), then $MAGNA_MISSIONS_PATH, then
+the project's missions/. WORLD likewise: a file or WORLD/SUBWORLD, in each DIR's worlds/ or Worlds/
+(and DIR itself), then the project's worlds/ and $MAGNA_WORLDS_PATH. `magna run` looks them up
+the same way.
 """
 
-_CHECK_EPILOG = """\
+_EPILOG = _LOOKUP + """
+examples:
+  ./magna mission check Gym/2UAVs_Crossing_ORCA --world Gym/Central_Obstacle_Torus
+  ./magna mission check Gym/2UAVs_2paths_Central_Cylinder --world Gym/1Obs_Central_Cylinder \\
+      --search-path ../shared/ros_magna_corpus
+  ./magna mission draw missions/Gym/Safe_Stop.json -o /tmp/safe_stop.png --force
+"""
+
+_CHECK_EPILOG = _LOOKUP + """
 The mission is loaded (a legacy file is migrated first: the changes are listed),
 validated (states, transitions with the {id}_{name} naming, outcome maps, callbacks,
 agent ids, follow targets, ...) and its state machine built and checked. With --world,
@@ -38,24 +47,23 @@ how): a safety branch naming a UAV the mission does not configure, an outcome-ma
 that can never match, an ID given twice, a key nothing reads, ... --strict refuses them
 (exit 2), for authors of new files.
 
-Names are looked up as <dir>/<mission>/<submission>.json (and <dir>/Missions/...) in
-each --search-path DIR, then $MAGNA_MISSIONS_PATH, then missions/; worlds as
-<dir>/<world>/<subworld>.json (and <dir>/Worlds/...) in each --search-path DIR, then
-$MAGNA_WORLDS_PATH, then worlds/.
-
 examples:
-  magna mission check Gym/2UAVs_2paths_Central_Cylinder --search-path ../shared/ros_magna_corpus
-  magna mission check Delivery/2UAVs_follow_ad_safe --world Delivery/Delivery --search-path ../shared/ros_magna_corpus
+  ./magna mission check missions/Gym/Safe_Stop.json --strict
+  ./magna mission check Gym/2UAVs_2paths_Central_Cylinder --search-path ../shared/ros_magna_corpus
+  ./magna mission check Delivery/2UAVs_follow_ad_safe --world Delivery/Delivery \\
+      --search-path ../shared/ros_magna_corpus
 """
 
-_DRAW_EPILOG = """\
+_DRAW_EPILOG = _LOOKUP + """
 The machine is built with states that never run and drawn with magna_sm's graphviz
 drawing: containers as clusters, container outcomes as red boxes, initial states with
-a bold border. The format follows the suffix: .png, .svg, .pdf or .dot.
+a bold border. The format follows the suffix: .png, .svg, .pdf or .dot. An existing
+picture is replaced only with --force.
 
 examples:
-  magna mission draw Gym/2UAVs_2paths_Central_Cylinder --search-path ../shared/ros_magna_corpus -o gym.png
-  magna mission draw missions/Gym/Two_Paths.json -o two_paths.svg --force
+  ./magna mission draw Gym/2UAVs_Crossing_ORCA -o /tmp/crossing.svg --force
+  ./magna mission draw Gym/2UAVs_2paths_Central_Cylinder --search-path ../shared/ros_magna_corpus \\
+      -o /tmp/two_paths.png --force
 """
 
 DRAW_FORMATS = (".png", ".svg", ".pdf", ".dot")
@@ -72,7 +80,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                            epilog=_CHECK_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     _mission(check)
     check.add_argument("--world", metavar="WORLD",
-                       help="world file or <world>/<subworld> name to resolve the mission's poses in")
+                       help="world file or WORLD/SUBWORLD name to resolve the mission's poses in")
     check.add_argument("--seed", type=int, default=0, metavar="N",
                        help="seed of the world's random pose sets and of random queries (default: %(default)s)")
     check.add_argument("--strict", action="store_true",
@@ -83,20 +91,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                           description="Draw a mission's state machine (graphviz) to a picture.",
                           epilog=_DRAW_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     _mission(draw)
-    draw.add_argument("-o", "--output", required=True, metavar="FILE",
-                      help=f"picture to write ({', '.join(DRAW_FORMATS)} by its suffix)")
+    add_output(draw, required=True, metavar="FILE",
+               help=f"picture to write ({', '.join(DRAW_FORMATS)} by its suffix)")
+    add_force(draw, help="replace FILE if it exists")
     draw.add_argument("--title", help="title over the picture (default: the mission file and its state count)")
-    draw.add_argument("--force", action="store_true", help="overwrite FILE if it exists")
     draw.set_defaults(_mission_run=_draw)
 
 
 def _mission(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("mission", metavar="MISSION",
-                        help="mission file, or <mission>/<submission> name (e.g. Gym/2UAVs_2paths_Central_Cylinder)")
-    parser.add_argument("--search-path", action="append", default=[], type=Path, metavar="DIR",
-                        help="folder to look names up in, before $MAGNA_MISSIONS_PATH / $MAGNA_WORLDS_PATH and the "
-                             "project's missions/ and worlds/ (repeatable; a ROS-MAGNA tree with Missions/ and "
-                             "Worlds/ works too)")
+                        help="mission file, or MISSION/SUBMISSION name (e.g. Gym/2UAVs_Crossing_ORCA)")
+    add_search_path(parser, what="missions and worlds")
 
 
 class _Problems(Exception):
@@ -125,11 +130,30 @@ def run(args) -> int:
 
 # --- loading ---------------------------------------------------------------------------------------------------
 
+def mission_folders(search_dirs) -> list[Path]:
+    """Where mission names are looked up, as `magna run` does (magna_master.batch.find_mission): each DIR's
+    missions/ (when there) and DIR itself (the finder also tries their Missions/), then $MAGNA_MISSIONS_PATH and
+    the project's missions/. UsageError for a --search-path folder that does not exist."""
+    from magna_gs.mission.loader import default_search_path
+    from magna_master.cli import UsageError
+
+    folders: list[Path] = []
+    for directory in search_dirs:
+        directory = Path(directory).expanduser()
+        if not directory.is_dir():
+            raise UsageError(f"--search-path {directory}: no such folder; give a folder holding missions/ and "
+                             "worlds/ (or Missions/ and Worlds/, as ROS-MAGNA's Code/JSONs)")
+        if (directory / "missions").is_dir():
+            folders.append(directory / "missions")
+        folders.append(directory)
+    return [*folders, *[f for f in default_search_path() if f not in folders]]
+
+
 def _load(args):
     from magna_gs.mission.loader import load_mission, resolve_mission_path
     from magna_gs.mission.model import MissionError
 
-    folders = [*args.search_path, *_default_missions()]
+    folders = mission_folders(args.search_path)
     try:
         path = resolve_mission_path(args.mission, folders)
         return load_mission(path, strict=getattr(args, "strict", False))
@@ -137,29 +161,10 @@ def _load(args):
         raise _Problems([" ".join(p.split()) for p in error.problems]) from None
 
 
-def _default_missions() -> list[Path]:
-    from magna_gs.mission.loader import default_search_path
+def _world_file(name: str, search_dirs: list[Path]) -> Path:
+    from magna_worlds.cli import find_world
 
-    return default_search_path()
-
-
-def _world_file(name: str, folders: list[Path]) -> Path:
-    from magna_master.cli import UsageError
-    from magna_worlds.loader import default_search_path, find_world_file
-
-    path = Path(name)
-    if path.is_file():
-        return path
-    relative = name[:-5] if name.endswith(".json") else name
-    world, _, subworld = relative.rpartition("/")
-    roots = [*folders, *default_search_path()]
-    roots = [r for folder in roots for r in (Path(folder), Path(folder) / "Worlds")]
-    found = find_world_file(world, subworld, roots) if world and subworld else None
-    if found is None:
-        looked = ", ".join(str(r / f"{relative}.json") for r in roots)
-        raise UsageError(f"--world {name}: no such file, nor a world <world>/<subworld> of that name; looked at "
-                         f"{looked}")
-    return found
+    return find_world(name, search_dirs, option="--world")
 
 
 # --- check -----------------------------------------------------------------------------------------------------
@@ -216,14 +221,14 @@ def _check(args) -> int:
 
 def _check_world(mission, args) -> tuple[str, list[str]]:
     from magna_gs.mission.world_check import check_in_world, pose_definitions
+    from magna_worlds.cli import world_roots
     from magna_worlds.errors import WorldError
     from magna_worlds.loader import load_world_checked
 
     strict = getattr(args, "strict", False)
     path = _world_file(args.world, args.search_path)
     try:
-        checked = load_world_checked(path, [*args.search_path, *_world_roots(args.search_path)], strict=strict,
-                                     seed=args.seed)
+        checked = load_world_checked(path, world_roots(args.search_path), strict=strict, seed=args.seed)
     except WorldError as error:
         raise _Problems([" ".join(str(error).split())]) from None
     found = check_in_world(mission, checked.resolved, args.seed, strict=strict)
@@ -233,12 +238,6 @@ def _check_world(mission, args) -> tuple[str, list[str]]:
     count = len(pose_definitions(mission))
     verdict = f"{count} pose definition(s) resolve" if not problems else f"{len(problems)} problem(s) (on stderr)"
     return f"world       {path} (seed {args.seed}): {verdict}", problems
-
-
-def _world_roots(folders: list[Path]) -> list[Path]:
-    from magna_worlds.loader import default_search_path
-
-    return [*(Path(f) / "Worlds" for f in folders), *default_search_path()]
 
 
 # --- draw ------------------------------------------------------------------------------------------------------
@@ -251,8 +250,10 @@ def _draw(args) -> int:
         raise UsageError(f"-o {output}: unknown picture format '{output.suffix}'; name it *.png, *.svg, *.pdf or *.dot")
     if not output.parent.is_dir():
         raise UsageError(f"-o {output}: folder {output.parent} does not exist; create it first")
-    if output.exists() and not args.force:  # before any work: nothing is drawn for nothing
-        raise UsageError(f"{output}: already exists; pass --force to overwrite it")
+    try:  # before any work: nothing is drawn for nothing
+        check_output(output, args.force)
+    except OutputExists as error:
+        raise UsageError(str(error)) from None
     loaded = _load(args)
 
     from magna_gs.mission.build import InertFactory, build_machine
