@@ -1,0 +1,1 @@
+"""Tools shared by every MAGNA package; this package imports nothing of MAGNA."""
