@@ -12,10 +12,13 @@ setup:  ## install Debian packages, the venv and build the catkin workspace (qui
 
 # The default batch: two UAVs crossing the gym's central obstacles with ORCA-3D, three simulations,
 # headless, as fast as the machine goes. Runs append to the dataset (nothing is overwritten).
-RUN_ARGS ?= --world Gym/Central_Obstacle_Torus --mission Gym/2UAVs_Crossing_ORCA --n-iter 3 --rtf max --append
+# RUN_ARGS adds to these defaults: an option it names overrides the default (magna run keeps the
+# last value given), and a dataset policy it names (--overwrite, --skip-save) replaces --append.
+RUN_DEFAULTS := --world Gym/Central_Obstacle_Torus --mission Gym/2UAVs_Crossing_ORCA --n-iter 3 --rtf max
+RUN_POLICY := $(if $(filter --append --overwrite --skip-save --no-data,$(RUN_ARGS)),,--append)
 
-run: setup  ## the main job: a default batch of simulations (RUN_ARGS=... to change it), then its summary
-	@./magna run $(RUN_ARGS)
+run: setup  ## the main job: a default batch of simulations (RUN_ARGS="--n-iter 1 ..." adds to the defaults)
+	@./magna run $(RUN_DEFAULTS) $(RUN_POLICY) $(RUN_ARGS)
 
 test: setup  ## linters, unit tests (pytest) and integration tests (gtest, rostest), one summary
 	@bash scripts/test.sh

@@ -32,9 +32,12 @@ if [ "${1:-}" != "--lint-only" ]; then
 fi
 
 summary_status=0
-if [ "${1:-}" != "--lint-only" ]; then  # lint alone writes no result files to sum up
+if [ "${1:-}" != "--lint-only" ]; then
   python scripts/test_summary.py "$results" build/*/test_results
   summary_status=$?
+else  # lint writes no result files: its summary is the count of linters that passed
+  lint_failed=${#failed_steps[@]}
+  printf '\nlint: %d passed, %d failed (ruff, catkin_lint)\n' $((2 - lint_failed)) "$lint_failed"
 fi
 if [ ${#failed_steps[@]} -gt 0 ]; then
   echo "failed steps: ${failed_steps[*]}" >&2
