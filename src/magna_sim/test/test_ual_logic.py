@@ -36,10 +36,15 @@ def test_full_cycle_take_off_fly_land(logic):
     assert logic.state == UalState.TAKING_OFF
     vehicle.position = np.array([1.0, 2.0, 2.95])
     logic.update(2.0)
+    assert logic.state == UalState.TAKING_OFF  # there, but not yet for hold_time
+    logic.update(3.0)
     assert logic.state == UalState.FLYING_AUTO
     logic.go_to([4.0, 5.0, 6.0], 0.0)
     assert not logic.reached()
     vehicle.position = np.array([4.0, 5.1, 6.0])
+    logic.update(3.5)
+    assert not logic.reached()
+    logic.update(4.5)
     assert logic.reached()
     logic.land()
     assert logic.state == UalState.LANDING
@@ -111,3 +116,67 @@ def test_failsafe_land_overrides_what_was_commanded(logic):
     logic.take_off(2.0)
     logic.failsafe_land()
     assert logic.state == UalState.LANDING
+
+
+def flying(airframe="iris", **settings):
+    vehicle = Vehicle("uav_1", 1, load_airframe(airframe), "light", position=np.array([0.0, 0.0, 2.0]))
+    ual = UalLogic(vehicle, UalSettings(**settings))
+    ual.update(0.0)
+    ual.state = UalState.FLYING_AUTO
+    return ual
+
+
+def test_arrival_radius_is_half_of_position_th_and_never_beyond_the_accepted_target_radius():
+    assert flying("iris").arrival_radius == pytest.approx(0.165)  # iris accepts 0.9 m: UAL's 0.33 / 2 rules
+    assert flying("iris", position_th=4.0).arrival_radius == pytest.approx(0.9)  # capped by iris's 0.9 m
+    assert flying("crazyflie").arrival_radius == pytest.approx(load_airframe("crazyflie").accepted_target_radius)
+
+
+def test_a_waypoint_counts_only_after_holding_within_the_radius_and_heading():
+    ual = flying(hold_time=1.0)
+    ual.go_to([3.0, 0.0, 2.0], math.pi / 2)
+    vehicle = ual.vehicle
+    vehicle.position = np.array([2.75, -0.17, 2.0])  # 0.30 m off: UAL's old 0.33 m said "arrived" here
+    for t in (1.0, 2.0, 3.0):
+        ual.update(t)
+    assert not ual.reached()
+    vehicle.position = np.array([2.9, 0.0, 2.0])  # within 0.165 m, but still facing east
+    ual.update(4.0)
+    ual.update(5.5)
+    assert not ual.reached()
+    vehicle.orientation = np.array([0.0, 0.0, math.sin(math.pi / 4), math.cos(math.pi / 4)])
+    ual.update(6.0)
+    vehicle.position = np.array([3.5, 0.0, 2.0])  # blown out again: the hold starts over
+    ual.update(6.5)
+    vehicle.position = np.array([3.05, 0.0, 2.0])
+    ual.update(7.0)
+    ual.update(7.9)
+    assert not ual.reached()
+    ual.update(8.0)
+    assert ual.reached() and ual.stuck is None
+
+
+def test_a_target_that_comes_no_nearer_is_given_up_with_the_reason():
+    ual = flying(stuck_time=10.0)
+    ual.go_to([3.0, 0.0, -1.0], 0.0)
+    vehicle = ual.vehicle
+    for t, x in ((0.0, 0.0), (2.0, 1.5), (4.0, 3.0)):
+        vehicle.position = np.array([x, 0.0, 0.0])  # down on the ground, under the target
+        ual.update(t)
+    for t in (8.0, 13.9):
+        ual.update(t)
+        assert ual.stuck is None
+    ual.update(14.1)
+    assert not ual.reached()
+    assert ual.stuck.startswith("UAV 1 is at (3.00, 0.00, 0.00), 1.00 m from (3.00, 0.00, -1.00), "
+                                "and has come no nearer in 10 s of simulated time")
+    ual.go_to([3.0, 0.0, 2.0], 0.0)  # a new command starts afresh
+    assert ual.stuck is None
+
+
+def test_stuck_time_zero_waits_for_ever():
+    ual = flying(stuck_time=0.0)
+    ual.go_to([3.0, 0.0, -1.0], 0.0)
+    for t in (0.0, 100.0, 1000.0):
+        ual.update(t)
+    assert ual.stuck is None and not ual.reached()

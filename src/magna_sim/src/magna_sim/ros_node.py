@@ -67,6 +67,12 @@ Private parameters (defaults):
   ~battery_floor (0)     % of charge a battery never falls below (PX4 SITL's SIM_BAT_MIN_PCT; 0: runs empty)
   ~depth_camera/enabled (false), ~depth_camera/width (64), /height (48), /rate (10), /fov (90)
   ~position_th (0.33), ~orientation_th (0.65), ~velocity_timeout (1.0)   UAL thresholds
+  ~hold_pose_time (1.0)  s of sim time a UAV must stay within the arrival radius (half of ~position_th,
+                         at most the airframe's accepted_target_radius) and half of ~orientation_th of
+                         a take-off or waypoint target: then the take-off is FLYING_AUTO and a
+                         blocking take_off or go_to_waypoint returns
+  ~stuck_time (10)       s of sim time a target may come no nearer before a blocking take_off or
+                         go_to_waypoint fails as not reached (0: wait for ever, as a real UAL)
   ~ground_impact_speed (1.0)   ground contacts faster than this (m/s) are collisions
 
 Example: roslaunch magna_sim sim.launch uavs:=3 model:=iris flight_model:=light rtf:=1.0
@@ -132,7 +138,9 @@ class NodeSettings:
                     "fov": float(rospy.get_param("~depth_camera/fov", 90.0))},
             ual=UalSettings(position_th=float(rospy.get_param("~position_th", 0.33)),
                             orientation_th=float(rospy.get_param("~orientation_th", 0.65)),
-                            velocity_timeout=float(rospy.get_param("~velocity_timeout", 1.0))),
+                            velocity_timeout=float(rospy.get_param("~velocity_timeout", 1.0)),
+                            hold_time=float(rospy.get_param("~hold_pose_time", 1.0)),
+                            stuck_time=float(rospy.get_param("~stuck_time", 10.0))),
             ground_impact_speed=float(rospy.get_param("~ground_impact_speed", 1.0)),
             start_paused=_as_bool("~start_paused", rospy.get_param("~start_paused", False)),
             lockstep=_as_bool("~lockstep", rospy.get_param("~lockstep", True)),
@@ -145,6 +153,9 @@ class NodeSettings:
             value = getattr(settings, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"~{name}: {value} must be a positive rate (per simulated second)")
+        for name, value in (("hold_pose_time", settings.ual.hold_time), ("stuck_time", settings.ual.stuck_time)):
+            if not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"~{name}: {value} must be 0 or more seconds of simulated time")
         if settings.uavs < 0:
             raise ValueError(f"~uavs: {settings.uavs} must be 0 or more")
         return settings

@@ -4,7 +4,9 @@ Topics and services are those of a real UAL server, so a client cannot tell
 the difference. Every callback hands its work to the simulation loop through
 the CommandQueue; a refused command fails the service call with the reason
 (the UAL services have empty responses, so the error travels as the ROS
-service error) and is logged.
+service error) and is logged. A blocking take_off or go_to_waypoint returns once
+the UAV has arrived (ual_logic: held within the arrival radius), and fails with
+"not reached: ..." when its target is out of reach.
 """
 from __future__ import annotations
 
@@ -189,7 +191,11 @@ class UalServer:
         def finished():
             if self.logic.command_id != command_id:
                 raise CommandRefused(f"{name} interrupted: a newer command replaced it before it finished")
-            return True if done() else None
+            if done():
+                return True
+            if self.logic.stuck is not None:
+                raise CommandRefused(f"{name} not reached: {self.logic.stuck}")
+            return None
 
         self._service_guard(name, lambda: self.queue.wait_for(finished))
 

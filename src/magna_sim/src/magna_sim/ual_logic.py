@@ -8,6 +8,14 @@ service call. `update` advances the machine after each physics step.
 Every accepted command bumps `command_id`, so a blocking call can tell when a
 newer command took its place.
 
+Arrival (as GRVC UAL's referencePoseReached, with the UAV's true pose): a multirotor has
+reached a take-off or waypoint target once it has stayed within `arrival_radius` of it
+(half of UAL's position_th, and never more than the airframe's accepted_target_radius),
+with its heading within half of orientation_th, for `hold_time` of simulated time. A
+take-off becomes FLYING_AUTO only then. A target that comes no nearer for `stuck_time`
+(blocked, under the ground, ...) is given up on: `stuck` says why, and a blocking call
+fails with that reason instead of waiting for ever.
+
 A fixed wing (an airframe with a fixed_wing block) runs the same machine; only what
 counts as done differs, because it cannot stop: a waypoint is reached once the plane
 circles it on its loiter circle, and a landing ends when the plane has rolled to a stop.
@@ -40,12 +48,29 @@ class CommandRefused(ValueError):
 
 @dataclass(frozen=True)
 class UalSettings:
-    position_th: float = 0.33  # m: a waypoint counts as reached (UAL's default)
-    orientation_th: float = 0.65  # rad
+    position_th: float = 0.33  # m: UAL's default; a target is reached within half of it (see arrival_radius)
+    orientation_th: float = 0.65  # rad: UAL's default; the heading must be within half of it
+    hold_time: float = 1.0  # s of sim time the UAV must stay there (UAL's hold_pose_time, 3 s on a real UAV)
+    stuck_time: float = 10.0  # s of sim time without coming nearer before a target counts as out of reach
     take_off_speed: float = 1.0  # m/s
     land_speed: float = 0.6  # m/s
     velocity_timeout: float = 1.0  # s of sim time without set_velocity before holding position; 0 = never
     landed_height: float = 0.05  # m above the ground that counts as touched down
+
+
+PROGRESS_STEP = 0.05  # m nearer than its best so far that counts as progress toward a target
+
+
+@dataclass
+class _Approach:
+    """How the UAV is doing on the take-off or waypoint of one command."""
+
+    within_since: float | None = None  # sim time it last came within the arrival radius and heading
+    best: float = math.inf  # distance (m) when it last made progress
+    best_time: float = 0.0  # when it last came PROGRESS_STEP nearer (or was within the radius)
+    nearest: float = math.inf  # nearest it has come (m)
+    arrived: bool = False
+    stuck: str | None = None  # why the target is given up on
 
 
 class UalLogic:
@@ -58,6 +83,9 @@ class UalLogic:
         self._fixed_wing = vehicle.airframe.fixed_wing  # None for a multirotor
         self._last_velocity_time = 0.0
         self._time = 0.0
+        self._approach: _Approach | None = None  # the take-off or waypoint being flown to, if any
+        # A blocking call must never return farther out than MAGNA's own idea of "there".
+        self.arrival_radius = min(settings.position_th / 2.0, vehicle.airframe.accepted_target_radius)
 
     # --- commands --------------------------------------------------------------------------------------------
     def take_off(self, height: float) -> None:
@@ -68,6 +96,7 @@ class UalLogic:
         target = self.vehicle.position + np.array([0.0, 0.0, height])
         self._command(Setpoint(SetpointMode.POSITION, position=target, yaw=self.vehicle.yaw,
                                max_vertical_speed=self.settings.take_off_speed, manoeuvre=Manoeuvre.TAKE_OFF))
+        self._watch()
         self.state = UalState.TAKING_OFF
 
     def land(self) -> None:
@@ -79,6 +108,7 @@ class UalLogic:
         _require_finite("waypoint orientation (yaw)", yaw)
         self._require(UalState.FLYING_AUTO, "go_to_waypoint")
         self._command(Setpoint(SetpointMode.POSITION, position=position, yaw=yaw))
+        self._watch()
 
     def failsafe_land(self) -> None:
         """Land whatever was commanded (empty battery); the commander sees LANDING."""
@@ -113,10 +143,16 @@ class UalLogic:
         """Called after every physics step with the sim time."""
         self._time = time
         vehicle, state = self.vehicle, self.state
+        approach = self._approach
+        if approach is not None and not approach.arrived and approach.stuck is None and self._fixed_wing is None:
+            self._follow(approach, time)
         if state == UalState.UNINITIALIZED:
             self.state = UalState.LANDED_ARMED
         elif state == UalState.TAKING_OFF:
-            if abs(vehicle.position[2] - vehicle.setpoint.position[2]) < self.settings.position_th / 2:
+            if self._fixed_wing is not None:  # it climbs out along its heading: only the height counts
+                if abs(vehicle.position[2] - vehicle.setpoint.position[2]) < self.settings.position_th / 2:
+                    self.state = UalState.FLYING_AUTO
+            elif approach is not None and approach.arrived:
                 self.state = UalState.FLYING_AUTO
         elif state == UalState.LANDING:
             # A plane touches down at speed and rolls out: landed once it has stopped.
@@ -130,16 +166,19 @@ class UalLogic:
             self._hold_here()  # a silent commander must not leave a UAV drifting away
 
     def reached(self) -> bool:
-        """Is the current position setpoint reached within UAL's thresholds?"""
+        """Has the UAV arrived at the target of the current take-off or go_to_waypoint (see the module doc)?"""
         setpoint = self.vehicle.setpoint
         if setpoint.mode != SetpointMode.POSITION:
             return False
         if self._fixed_wing is not None:  # it circles the point; its heading is its course
             return fixed_wing.on_station(self._fixed_wing, setpoint.position, self.vehicle.position,
                                          self.settings.position_th)
-        distance = np.linalg.norm(setpoint.position - self.vehicle.position)
-        heading = abs(float((setpoint.yaw - self.vehicle.yaw + math.pi) % (2 * math.pi) - math.pi))
-        return distance < self.settings.position_th and heading < self.settings.orientation_th
+        return self._approach is not None and self._approach.arrived
+
+    @property
+    def stuck(self) -> str | None:
+        """Why the current take-off or waypoint is out of reach, or None while it is not (or is reached)."""
+        return None if self._approach is None else self._approach.stuck
 
     # --- helpers ---------------------------------------------------------------------------------------------
     def _require(self, state: UalState, command: str) -> None:
@@ -157,11 +196,46 @@ class UalLogic:
     def _command(self, setpoint: Setpoint) -> None:
         self.vehicle.setpoint = setpoint
         self.command_id += 1
+        self._approach = None
 
     def _hold_here(self) -> None:
         self.vehicle.setpoint = Setpoint(SetpointMode.POSITION, position=self.vehicle.position.copy(),
                                          yaw=self.vehicle.yaw)
         self.command_id += 1
+        self._approach = None
+
+    def _watch(self) -> None:
+        """Follow the UAV toward the setpoint just commanded, for reached() and stuck."""
+        self._approach = _Approach(best_time=self._time)
+
+    def _follow(self, approach: _Approach, time: float) -> None:
+        vehicle, setpoint, settings = self.vehicle, self.vehicle.setpoint, self.settings
+        target, position = setpoint.position, vehicle.position
+        # Plain floats: this runs every physics step while a UAV flies to a target.
+        distance = math.sqrt((float(target[0]) - float(position[0])) ** 2
+                             + (float(target[1]) - float(position[1])) ** 2
+                             + (float(target[2]) - float(position[2])) ** 2)
+        heading = abs((setpoint.yaw - vehicle.yaw + math.pi) % (2 * math.pi) - math.pi)
+        inside = distance <= self.arrival_radius
+        if inside and heading <= settings.orientation_th / 2:
+            if approach.within_since is None:
+                approach.within_since = time
+            if time - approach.within_since >= settings.hold_time:
+                approach.arrived = True
+                return
+        else:
+            approach.within_since = None
+        approach.nearest = min(approach.nearest, distance)
+        if inside or distance < approach.best - PROGRESS_STEP:
+            approach.best, approach.best_time = distance, time
+        if settings.stuck_time > 0 and time - approach.best_time > settings.stuck_time:
+            where = ", ".join(f"{float(c):.2f}" for c in position)
+            goal = ", ".join(f"{float(c):.2f}" for c in target)
+            approach.stuck = (
+                f"UAV {vehicle.uav_id} is at ({where}), {distance:.2f} m from ({goal}), and has come no nearer in "
+                f"{settings.stuck_time:g} s of simulated time (nearest {approach.nearest:.2f} m; arrival needs "
+                f"{self.arrival_radius:g} m): something blocks it or the target is out of reach. It keeps flying "
+                f"toward the target until another command")
 
 
 def _require_finite(name: str, value: float) -> None:
