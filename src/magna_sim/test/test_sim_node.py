@@ -4,7 +4,10 @@ import subprocess
 
 import pytest
 
+from magna_uav.airframes import load_airframe
 from tests.support import wait_until
+
+ARRIVAL_RADIUS = 0.33 / 2  # the sim's default arrival radius for iris: half of UAL's position_th
 
 
 def test_node_help_lists_the_parameters():
@@ -61,7 +64,7 @@ def test_fly_a_uav_by_hand(sim):
     assert code == 0 and "uav 2: FLYING_AUTO" in text
     code, text = fly(sim, "--id", "2", "go_to", "3", "1", "2.5", "--yaw", "90")
     assert code == 0 and "FLYING_AUTO" in text
-    assert math.dist(printed_position(text), (3.0, 1.0, 2.5)) < 0.33  # UAL's "reached" threshold
+    assert math.dist(printed_position(text), (3.0, 1.0, 2.5)) <= ARRIVAL_RADIUS
     code, text = fly(sim, "--id", "2", "velocity", "0", "0.5", "0", "--duration", "2")
     assert code == 0
     assert 1.6 < printed_position(text)[1] < 2.4  # about 1 m further along y
@@ -73,14 +76,38 @@ def test_fly_refusals_are_clear(sim):
     code, text = fly(sim, "--id", "7", "state")
     assert code == 1 and "no UAL server for UAV 7; /ual_ids = [1, 2]" in text
     code, text = fly(sim, "--id", "1", "land")
-    assert code == 1 and "land refused: UAV 1 is LANDED_ARMED; land needs FLYING_AUTO" in text
+    # the server's reason, not rospy's wrapping of it (service [...] responded with an error: b'service ...')
+    assert code == 1 and text.strip() == ("fly: /uav_1/ual/land: land refused: UAV 1 is LANDED_ARMED; "
+                                          "land needs FLYING_AUTO")
+
+
+def test_blocking_take_off_and_go_to_return_only_once_the_uav_is_there(sim):
+    # UAV 1 starts at (0, -1, 0). The printed pose is read after the call returned.
+    code, text = fly(sim, "--id", "1", "take_off", "2")
+    assert code == 0 and "uav 1: FLYING_AUTO" in text
+    assert math.dist(printed_position(text), (0.0, -1.0, 2.0)) <= ARRIVAL_RADIUS
+    code, text = fly(sim, "--id", "1", "go_to", "3", "0", "2")
+    assert code == 0 and "uav 1: FLYING_AUTO" in text
+    assert math.dist(printed_position(text), (3.0, 0.0, 2.0)) <= ARRIVAL_RADIUS
+    assert ARRIVAL_RADIUS <= load_airframe("iris").accepted_target_radius
+
+
+def test_a_waypoint_out_of_reach_fails_as_not_reached(sim):
+    assert fly(sim, "--id", "1", "take_off", "1")[0] == 0
+    code, text = fly(sim, "--id", "1", "go_to", "3", "-1", "-1")  # under the ground: the UAV stops on it
+    assert code == 1
+    assert text.startswith("fly: /uav_1/ual/go_to_waypoint: go_to_waypoint not reached: UAV 1 is at "
+                           "(3.00, -1.00, 0.00), 1.00 m from (3.00, -1.00, -1.00), and has come no nearer in "
+                           "10 s of simulated time"), text
+    code, text = fly(sim, "--id", "1", "go_to", "3", "-1", "1")  # still under command: fly on
+    assert code == 0 and math.dist(printed_position(text), (3.0, -1.0, 1.0)) <= ARRIVAL_RADIUS
 
 
 def test_dynamic_model_flies_through_the_same_api(fresh_ros_master):
     node = start_sim(fresh_ros_master, "_flight_model:=dynamic", "_model:=typhoon_h480")
     code, text = fly(fresh_ros_master, "--id", "1", "take_off", "1.5")
     assert code == 0 and "uav 1: FLYING_AUTO" in text
-    assert abs(printed_position(text)[2] - 1.5) < 0.33
+    assert math.dist(printed_position(text), (0.0, -1.0, 1.5)) <= ARRIVAL_RADIUS
     code, text = fly(fresh_ros_master, "--id", "1", "land")
     assert code == 0 and "uav 1: LANDED_ARMED" in text and printed_position(text)[2] < 0.05
     assert node.poll() is None

@@ -5,17 +5,39 @@ Only UAL names are used, so it works against any UAL server.
 from __future__ import annotations
 
 import argparse
+import ast
 import math
+import re
 import sys
+
+# How rospy's client wraps a server's refusal; the reason comes as a bytes literal under Python 3.
+_WRAPPED = re.compile(r"service \[(?P<name>[^\]]*)\] responded with an error: (?P<reason>.*)", re.S)
+_SERVER_PREFIXES = ("service cannot process request: ", "error processing request: ")
+
+
+DESCRIPTION = """\
+Fly one UAV by hand through the UAL API under /uav_{id}/ual/ (magna_sim or a real UAL server).
+
+take_off and go_to wait until the UAV is there (magna_sim: within half of UAL's position_th,
+0.165 m, and never farther than the airframe's accepted_target_radius, held for 1 s of simulated
+time) and then print its state and pose; a target it cannot reach fails with the reason, exit
+status 1. --no-wait returns at once."""
+
+EXAMPLES = """\
+examples:
+  roslaunch magna_sim sim.launch uavs:=1   # a simulated UAV to fly, until Ctrl-C [background]
+  rosrun magna_sim fly --id 1 take_off 2
+  rosrun magna_sim fly --id 1 go_to 3 0 2 --yaw 90
+  rosrun magna_sim fly --id 1 velocity 0.5 0 0 --duration 2
+  rosrun magna_sim fly --id 1 land
+  rosrun magna_sim fly --id 1 state"""
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="rosrun magna_sim fly",
-        description="Fly one UAV by hand through the UAL API under /uav_{id}/ual/.",
-        epilog="examples:\n  rosrun magna_sim fly --id 1 take_off 2\n  rosrun magna_sim fly --id 1 go_to 3 0 2 "
-               "--yaw 90\n  rosrun magna_sim fly --id 1 velocity 0.5 0 0 --duration 2\n"
-               "  rosrun magna_sim fly --id 1 land\n  rosrun magna_sim fly --id 1 state",
+        description=DESCRIPTION,
+        epilog=EXAMPLES,
         formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--id", type=int, default=1, help="UAL id of the UAV (default 1)")
     parser.add_argument("--no-wait", action="store_true", help="return at once instead of when the move is done")
@@ -43,9 +65,27 @@ def main(argv=None) -> int:
     try:
         run(args)
     except (rospy.ServiceException, rospy.ROSException, LookupError) as err:
-        print(f"fly: {err}", file=sys.stderr)
+        print(f"fly: {service_error_text(err)}", file=sys.stderr)
         return 1
     return 0
+
+
+def service_error_text(error: BaseException) -> str:
+    """`/uav_1/ual/land: land refused: ...` for rospy's `service [/uav_1/ual/land] responded with an
+    error: b'service cannot process request: land refused: ...'`; any other error as it is."""
+    text = str(error)
+    match = _WRAPPED.fullmatch(text)
+    if match is None:
+        return text
+    reason = match["reason"]
+    if reason[:2] in ("b'", 'b"'):
+        try:
+            reason = ast.literal_eval(reason).decode("utf-8", "replace")
+        except (ValueError, SyntaxError, AttributeError):
+            pass
+    for prefix in _SERVER_PREFIXES:
+        reason = reason.removeprefix(prefix)
+    return f"{match['name']}: {reason}"
 
 
 def run(args) -> None:
@@ -54,10 +94,8 @@ def run(args) -> None:
     from uav_abstraction_layer.msg import State
     from uav_abstraction_layer.srv import GoToWaypoint, Land, TakeOff
 
-    ids = rospy.get_param("/ual_ids", [])
-    if args.id not in ids:
-        raise LookupError(f"no UAL server for UAV {args.id}; /ual_ids = {ids}")
     ns = f"/uav_{args.id}/ual/"
+    _wait_for_server(args.id, ns, ready=args.command != "state")
     wait = not args.no_wait
     if args.command == "take_off":
         _service(ns + "take_off", TakeOff)(height=args.height, blocking=wait)
@@ -86,6 +124,41 @@ def run(args) -> None:
     pose = rospy.wait_for_message(ns + "pose", PoseStamped, timeout=10.0).pose.position
     names = {v: k for k, v in vars(State).items() if k.isupper()}
     print(f"uav {args.id}: {names.get(state.state, state.state)} at ({pose.x:.2f}, {pose.y:.2f}, {pose.z:.2f})")
+
+
+def _wait_for_server(uav_id: int, ns: str, ready: bool) -> None:
+    """Wait for the UAL server of `uav_id`: a simulator started a moment ago may not serve it yet.
+
+    `/ual_ids` lists the ids served; once it lists others but not ours, ours is not coming. With
+    `ready`, also wait for the UAV to leave UNINITIALIZED (a UAL refuses every command before).
+    """
+    import rospy
+    from uav_abstraction_layer.msg import State
+
+    ids: list = []
+
+    def listed() -> bool:
+        nonlocal ids
+        ids = rospy.get_param("/ual_ids", [])
+        return bool(ids)
+
+    try:
+        _wait_wall(listed, "/ual_ids")
+    except LookupError:
+        pass
+    if uav_id not in ids:
+        hint = "" if ids else " (is magna_sim running? roslaunch magna_sim sim.launch)"
+        raise LookupError(f"no UAL server for UAV {uav_id}; /ual_ids = {ids}{hint}")
+    if not ready:
+        return
+    latest: dict[str, int] = {}
+    subscriber = rospy.Subscriber(ns + "state", State, lambda msg: latest.__setitem__("state", msg.state),
+                                  queue_size=1)
+    try:
+        _wait_wall(lambda: latest.get("state", State.UNINITIALIZED) != State.UNINITIALIZED,
+                   f"UAV {uav_id} to be ready ({ns}state leaving UNINITIALIZED)")
+    finally:
+        subscriber.unregister()
 
 
 def _wait_wall(condition, what: str, seconds: float = 10.0) -> None:
