@@ -14,6 +14,7 @@ node clearing the world when the mission ends) is dropped, so the last frame sti
 """
 from __future__ import annotations
 
+import argparse
 import threading
 import time
 
@@ -89,7 +90,38 @@ class SceneNode:
             time.sleep(period)  # wall clock on purpose: see the module's docstring
 
 
+HELP = """\
+The UAVs of a mission drawn for rviz, live or from a bag: for every agent of the mission it
+subscribes to /uav_ID/ual/pose, /magna/uav_ID/path/raw and /path/smoothed and
+/magna/uav_ID/goal, and publishes a latched visualization_msgs/MarkerArray on ~topic when
+something changed, at most ~rate times per wall-clock second.
+
+Private parameters (defaults):
+  ~mission_file (required)  the mission JSON (a file path) whose agents to draw
+  ~topic (/magna/viz/scene) where the markers go
+  ~scale (0)                marker size; 0 takes the world family's (/magna/hyperparameters/world)
+  ~max_trail (0)            poses kept in each trail (0: the whole flight)
+  ~rate (10)                most marker messages per wall-clock second (at least 0.5)
+  ~world_in ("")            also republish the MarkerArrays of this topic (latched) on
+  ~world_out (/magna/world/markers), and with ~keep_world (true) drop a message that only
+                            clears the world, so the last frame still shows it
+"""
+
+EXAMPLES = """\
+examples:
+  rosrun magna_viz scene _mission_file:=missions/Gym/2UAVs_Crossing_ORCA.json   # the mission's UAVs [background]
+"""
+
+
+def parse_cli(argv) -> None:
+    """Only --help: everything else comes from ROS parameters (rospy.myargv has removed them)."""
+    parser = argparse.ArgumentParser(prog="rosrun magna_viz scene", description=HELP, epilog=EXAMPLES,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.parse_args(argv)
+
+
 def main(argv=None) -> int:
+    parse_cli(rospy.myargv()[1:] if argv is None else rospy.myargv(argv)[1:])
     rospy.init_node("magna_scene", argv=argv)
     try:
         node = SceneNode()
