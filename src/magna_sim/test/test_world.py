@@ -181,3 +181,25 @@ def test_an_empty_battery_makes_the_uav_land(world):
     assert world.batteries[1].depleted
     assert ual.state == UalState.LANDING
     run_until(world, lambda: ual.state == UalState.LANDED_ARMED, 20)
+
+
+@pytest.mark.parametrize(("airframe", "flight_model"), [("iris", "light"), ("iris", "dynamic"),
+                                                         ("crazyflie", "dynamic"), ("f550", "light")])
+def test_take_off_and_waypoint_end_within_the_arrival_radius(world, airframe, flight_model):
+    uav, ual = airborne(world, airframe, 2.0, flight_model=flight_model)
+    radius = ual.arrival_radius
+    assert radius <= uav.airframe.accepted_target_radius and radius <= 0.33 / 2
+    assert np.linalg.norm(uav.position - [0.0, 0.0, 2.0]) <= radius
+    ual.go_to([3.0, 0.0, 2.0], 0.0)
+    run_until(world, ual.reached, 20)
+    assert np.linalg.norm(uav.position - [3.0, 0.0, 2.0]) <= radius
+
+
+def test_a_wall_in_the_way_of_a_dynamic_uav_makes_its_waypoint_stuck(world):
+    uav, ual = airborne(world, "iris", 2.0, flight_model="dynamic")
+    world.spawn_obstacle("wall", "cube", [0.4, 6.0, 6.0], None, [3.0, 0.0, 3.0], [0.0, 0.0, 0.0, 1.0])
+    ual.go_to([6.0, 0.0, 2.0], 0.0)
+    run_until(world, lambda: ual.stuck is not None, 30)
+    assert not ual.reached()
+    assert uav.position[0] < 2.8  # pressed against the wall's near face
+    assert "has come no nearer in 10 s of simulated time" in ual.stuck
