@@ -218,6 +218,35 @@ def help_blocks() -> list[Block]:
     return blocks
 
 
+def ros_nodes(root: Path = ROOT) -> list[tuple[str, str]]:
+    """(package, node) for every node a user can rosrun: each package's nodes/ and installed C++ programs."""
+    found = []
+    for package in sorted(path.parent for path in root.glob("src/*/package.xml")):
+        found += [(package.name, node.name) for node in sorted((package / "nodes").glob("*")) if node.is_file()]
+        cmake = package / "CMakeLists.txt"
+        if cmake.exists():
+            found += [(package.name, name) for name in
+                      re.findall(r"install\(TARGETS\s+(\w+)\s+RUNTIME", cmake.read_text())]
+    return found
+
+
+def node_help_blocks(env: dict[str, str], root: Path = ROOT, timeout: float = 60.0) -> tuple[list[Block], list[str]]:
+    """The `examples:` of every node's `rosrun PACKAGE NODE --help`, one block per node, and the
+    nodes whose --help failed."""
+    blocks, failed = [], []
+    setup = shlex.quote(str(root / "devel" / "setup.bash"))
+    for package, node in ros_nodes(root):
+        source = f"rosrun {package} {node} --help"
+        shown = subprocess.run(["timeout", "-k", "5", f"{timeout:.0f}", "bash", "-c", f"source {setup} && {source}"],
+                               env=env, cwd=root, capture_output=True, text=True, stdin=subprocess.DEVNULL)
+        if shown.returncode != 0:
+            failed.append(f"{source} exited {shown.returncode}: {shown.stderr.strip()[-500:]}")
+        examples = help_examples(shown.stdout, source)
+        if examples:
+            blocks.append(Block(name=source, examples=examples, sourced=True))
+    return blocks, failed
+
+
 def user_environment(home: Path, master_port: int, root: Path = ROOT) -> dict[str, str]:
     """A user's shell that has sourced nothing of this workspace, with its own HOME and ROS master port."""
     drop_prefixes = ("ROS_", "MAGNA_", "CATKIN_", "PYTHONPATH", "CMAKE_PREFIX_PATH", "LD_LIBRARY_PATH",

@@ -55,6 +55,20 @@ def newcomer(tmp_path_factory, request):
             reporter.write_line(f"  {outcome.example.source}: {outcome.example.command}   ({outcome.status})")
 
 
+@pytest.mark.timeout(3600)
+def test_node_help_examples_run(newcomer):
+    """The `examples:` of every `rosrun PACKAGE NODE --help` (asked of the nodes here, not at collection)."""
+    blocks, report = doc_examples.node_help_blocks(newcomer["env"])
+    assert blocks, "no node's --help shows examples; the search for them is broken"
+    for block in blocks:
+        work = newcomer["work"] / block.name.replace(" ", "_")
+        outcomes = doc_examples.run_block(block, newcomer["env"], work)
+        newcomer["outcomes"] += outcomes
+        report += [f"{o.example.source}: `{o.example.command}` exited {o.returncode}:\n{o.output[-3000:]}"
+                   for o in outcomes if o.status == "failed"]
+    assert not report, "\n\n".join(report)
+
+
 def test_every_example_has_known_marks():
     assert PROBLEMS == []
 
