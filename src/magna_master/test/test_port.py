@@ -167,16 +167,48 @@ def test_fly_pairs_records_each_outcome_and_goes_on_after_a_pair_that_cannot_sta
 
 def test_cli_exit_status_table_and_json(tree, capsys):
     out_json = tree / "port.json"
-    assert main(["port", str(tree), "--json", str(out_json)]) == 0
-    printed = capsys.readouterr().out
-    assert "Lab/Inspection" in printed and "pairs validated 3 of 3" in printed
+    assert main(["port", str(tree), "-o", str(out_json)]) == 0
+    captured = capsys.readouterr()
+    assert "Lab/Inspection" in captured.out and "pairs validated 3 of 3" in captured.out
+    assert f"json:    {out_json}" in captured.out and captured.err == ""
     data = json.loads(out_json.read_text())
     assert {m["label"]: m["world"] for m in data["missions"]}["Lab/Home"] == "Lab/Small"
     # the JSON is not replaced without --force
-    assert main(["port", str(tree), "--json", str(out_json)]) == 2
-    assert "--force" in capsys.readouterr().err
+    before = out_json.read_text()
+    assert main(["port", str(tree), "--output", str(out_json)]) == 2
+    assert capsys.readouterr().err == f"magna port: -o {out_json} already exists; pass --force to replace it\n"
+    assert out_json.read_text() == before
+    out_json.write_text("old")
+    assert main(["port", str(tree), "-o", str(out_json), "--force", "--brief"]) == 0
+    assert json.loads(out_json.read_text()) == data
     _write(tree, "Missions/Other/Broken.json", "{ not json")
     assert main(["port", str(tree), "--brief"]) == 2
+
+
+def test_cli_old_spellings_json_and_no_data_still_work_with_one_line_each(tree, capsys):
+    from magna_common.cli_vocabulary import deprecation_line
+    from magna_master.cli import build_parser
+
+    out_json = tree / "old.json"
+    assert main(["port", str(tree), "--json", str(out_json), "--brief"]) == 0
+    assert json.loads(out_json.read_text())["missions"]
+    assert capsys.readouterr().err.splitlines() == [deprecation_line("magna port", "--json", "-o/--output")]
+    args = build_parser().parse_args(["port", str(tree), "--fly", "--no-data"])
+    assert args.skip_save is True
+    assert capsys.readouterr().err.splitlines() == [deprecation_line("magna port", "--no-data", "--skip-save")]
+    args = build_parser().parse_args(["port", str(tree), "--fly", "--skip-save", "--rtf", "2"])
+    assert args.skip_save is True and args.rtf == "2" and capsys.readouterr().err == ""
+    assert build_parser().parse_args(["port", str(tree)]).skip_save is False
+
+
+def test_cli_help_uses_the_vocabulary(capsys):
+    with pytest.raises(SystemExit):
+        main(["port", "--help"])
+    out = capsys.readouterr().out
+    for spelling in ("-o FILE, --output FILE", "--force", "--skip-save", "--rtf max|FACTOR"):
+        assert spelling in out
+    assert "--json" not in out and "--no-data" not in out
+    assert "./magna port ../shared/ros_magna_corpus" in out.split("examples:")[1]
 
 
 def test_cli_refuses_a_folder_without_worlds_or_missions(tmp_path, capsys):

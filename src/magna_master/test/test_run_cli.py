@@ -107,6 +107,54 @@ def test_lowercase_and_capitalised_trees_are_both_searched(tmp_path, corpus):
     assert inputs.world_file == (corpus / "Worlds/Gym/1Obs_Central_Cylinder.json").resolve()
 
 
+# --- the one vocabulary: --skip-save (old --no-data), --rtf, --search-path ---------------------------------------
+
+def parse_run(*argv):
+    return cli.build_parser().parse_args([str(a) for a in argv])
+
+
+def test_skip_save_saves_nothing_whether_or_not_the_dataset_exists(corpus, tmp_path, capsys):
+    from magna_master import run_cli
+
+    config = run_cli.build_config(parse_run(*run_args(corpus, tmp_path / "data", "--skip-save")))
+    assert config.save_data is False and config.policy is None
+    assert capsys.readouterr().err == ""
+    # with a dataset that holds simulations, nothing is asked and nothing is written either
+    folder = dataset(tmp_path / "data")
+    (folder / "simulation_1").mkdir(parents=True)
+    plan = storage.plan_storage(folder, 2, config.policy, config.save_data)
+    assert not plan.save and plan.ids == [1, 2] and "--skip-save" in plan.reason
+
+
+def test_no_data_is_the_old_spelling_of_skip_save(corpus, tmp_path, capsys):
+    from magna_common.cli_vocabulary import deprecation_line
+    from magna_master import run_cli
+
+    config = run_cli.build_config(parse_run(*run_args(corpus, tmp_path / "data", "--no-data")))
+    assert config.save_data is False
+    assert capsys.readouterr().err.splitlines() == [deprecation_line("magna run", "--no-data", "--skip-save")]
+
+
+def test_skip_save_does_not_go_with_a_dataset_policy(corpus, tmp_path, capsys):
+    with pytest.raises(SystemExit) as done:
+        parse_run(*run_args(corpus, tmp_path / "data", "--skip-save", "--append"))
+    assert done.value.code == 2
+    assert "--append: not allowed with argument --skip-save" in capsys.readouterr().err
+
+
+def test_help_uses_the_vocabulary_and_its_examples_name_real_files(capsys):
+    with pytest.raises(SystemExit):
+        parse_run("run", "--help")
+    out = capsys.readouterr().out
+    assert "--rtf max|FACTOR" in out and "--search-path DIR" in out and "--skip-save" in out
+    assert "--no-data" not in out
+    examples = out.split("examples:")[1]
+    assert "./magna run " in examples
+    for word in examples.replace("\\\n", " ").split():
+        if word.startswith(("missions/", "worlds/", "../shared/")):
+            assert (ROOT / word).exists(), word
+
+
 # --- whole batches through the command line ---------------------------------------------------------------------
 
 @pytest.mark.ros
@@ -132,9 +180,24 @@ def test_magna_run_prints_the_table_and_where_the_data_is(corpus, tmp_path, caps
 
 @pytest.mark.ros
 def test_a_crashing_ground_station_makes_magna_run_fail(corpus, tmp_path, capsys, leak_token, stand_in):
-    status = cli.main(run_args(corpus, tmp_path / "data", "--no-data",
+    status = cli.main(run_args(corpus, tmp_path / "data", "--skip-save",
                                "--launch-command", shlex.join(stand_in("crash"))))
     assert status == 1 and "crashed" in capsys.readouterr().out
+
+
+@pytest.mark.ros
+def test_skip_save_runs_on_an_existing_dataset_and_writes_nothing(corpus, tmp_path, capsys, leak_token, stand_in):
+    folder = dataset(tmp_path / "data")
+    (folder / "simulation_1").mkdir(parents=True)
+    (folder / "simulation_1" / "mine.txt").write_text("kept")
+    before = sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*"))
+    status = cli.main(run_args(corpus, tmp_path / "data", "--skip-save", "--n-iter", "2",
+                               "--launch-command", shlex.join(stand_in("ok"))))
+    out = capsys.readouterr().out
+    assert status == 0
+    assert [line.split()[:3] for line in out.splitlines()[1:3]] == [["1", "1", "yes"], ["2", "2", "yes"]]
+    assert "not saved" in out and "--skip-save" in out
+    assert sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*")) == before
 
 
 @pytest.mark.ros

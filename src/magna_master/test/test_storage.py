@@ -154,7 +154,7 @@ def test_skip_save_without_conflict_saves_as_usual(tmp_path):
 
 def test_no_data_plans_nothing_to_write(tmp_path):
     plan = plan_storage(KEY.dataset_dir(tmp_path, 1), 2, save=False)
-    assert not plan.save and plan.ids == [1, 2] and "--no-data" in plan.reason
+    assert not plan.save and plan.ids == [1, 2] and "--skip-save" in plan.reason
 
 
 @pytest.mark.parametrize(("answer", "ids", "save"), [("a", [3, 4], True), ("o", [1, 2], True), ("s", [1, 2], False)])

@@ -1,6 +1,6 @@
 """`magna port DIR`: can a folder of original ROS-MAGNA worlds and missions be used as it is?
 
-    magna port ~/ros_magna/Code/JSONs [--fly] [--strict] [--json FILE]
+    magna port ~/ros_magna/Code/JSONs [--fly] [--strict] [-o FILE] [--force]
 
 Exit status: 0 when every file loads and every paired mission validates in its world (flights that
 end in a safety branch or a failure are part of the report, not errors), 2 when a file or a pair is
@@ -12,6 +12,8 @@ import argparse
 import json
 import sys
 from pathlib import Path
+
+from magna_common.cli_vocabulary import OutputExists, add_deprecated_flag, add_force, add_output, add_rtf, check_output
 
 HELP = "porting report for a folder of ROS-MAGNA worlds and missions: what loads, migrates, warns and flies"
 
@@ -32,10 +34,14 @@ The original flew its simulated UAVs on PX4's SITL battery, which never falls be
 SIM_BAT_MIN_PCT), so its long inspections never met a low battery; --fly flies them the same way
 (--battery-floor 50). With --battery-floor 0 batteries run empty as in `magna run`.
 
+-o FILE also writes the whole report as JSON (replaced only with --force). With --fly each flight is
+saved under DATA_ROOT/Simulations/... in the series 'port', appended; --skip-save saves none.
+
 examples:
-  magna port ../shared/ros_magna_corpus
-  magna port ~/ros_magna/Code/JSONs --fly --json port.json
-  magna port my_lab_files --strict        # new files: warnings are refusals
+  ./magna port ../shared/ros_magna_corpus
+  ./magna port ../shared/ros_magna_corpus --brief -o /tmp/port.json --force
+  ./magna port . --strict --brief     # the project's own worlds/ and missions/; warnings are refusals
+  ./magna port ../shared/ros_magna_corpus --fly --skip-save      # also fly each pair once [long]
 """
 
 
@@ -51,11 +57,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--strict", action="store_true",
                         help="treat warnings as refusals (for authors of new files)")
     parser.add_argument("--seed", type=int, default=0, metavar="S", help="seed for random pose sets (default: 0)")
-    parser.add_argument("--rtf", default="max", metavar="max|FACTOR", help="real-time factor when flying "
-                                                                            "(default: max)")
-    parser.add_argument("--no-data", action="store_true",
+    add_rtf(parser, help="real-time factor when flying: 'max' runs as fast as the machine goes, a number runs "
+                         "that many times real time")
+    parser.add_argument("--skip-save", action="store_true",
                         help="with --fly: keep no simulation folders (by default each flight is saved under "
                              "DATA_ROOT/Simulations/... with the name 'port', appended)")
+    add_deprecated_flag(parser, "--no-data", "skip_save", "--skip-save")
     parser.add_argument("--data-root", type=Path, default=storage.DEFAULT_DATA_ROOT, metavar="DIR",
                         help="with --fly: where Simulations/ goes (default: ~/magna_data)")
     parser.add_argument("--time-limit", type=float, default=600.0, metavar="SECONDS",
@@ -63,8 +70,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--battery-floor", type=percentage_arg, default=50.0, metavar="PCT",
                         help="with --fly: simulated batteries keep PCT %% of their charge, as the PX4 SITL battery "
                              "the original flew on (SIM_BAT_MIN_PCT; default: 50); 0 for batteries that run empty")
-    parser.add_argument("--json", type=Path, metavar="FILE", help="also write the report as JSON to FILE")
-    parser.add_argument("--force", action="store_true", help="replace an existing --json FILE")
+    add_output(parser, metavar="FILE", help="also write the report as JSON to FILE", old=("--json",))
+    add_force(parser, help="replace an existing -o FILE")
     parser.add_argument("--brief", action="store_true", help="the table and totals only, no per-file details")
 
 
@@ -72,11 +79,13 @@ def run(args) -> int:
     from magna_master.cli import UsageError
     from magna_master.port import PortError, as_json, format_report, port_folder
 
-    if args.json is not None:
-        if args.json.exists() and not args.force:
-            raise UsageError(f"--json {args.json}: already exists; pass --force to replace it")
-        if not args.json.parent.is_dir():
-            raise UsageError(f"--json {args.json}: folder {args.json.parent} does not exist; create it first")
+    if args.output is not None:
+        try:
+            check_output(args.output, args.force, what="-o")
+        except OutputExists as error:
+            raise UsageError(str(error)) from None
+        if not args.output.parent.is_dir():
+            raise UsageError(f"-o {args.output}: folder {args.output.parent} does not exist; create it first")
     try:
         report = port_folder(args.folder, strict=args.strict, seed=args.seed, progress=_Progress())
     except PortError as error:
@@ -85,11 +94,11 @@ def run(args) -> int:
     if args.fly:
         _fly(report, args)
     print(format_report(report, details=not args.brief), flush=True)
-    if args.json is not None:
+    if args.output is not None:
         from magna_master.storage import atomic_write_text
 
-        atomic_write_text(args.json, json.dumps(as_json(report), indent=2) + "\n")
-        print(f"json:    {args.json}")
+        atomic_write_text(args.output, json.dumps(as_json(report), indent=2) + "\n")
+        print(f"json:    {args.output}")
     return 2 if report.refused else 0
 
 
@@ -103,7 +112,7 @@ def _fly(report, args) -> None:
     def make_config(mission):
         inputs = resolve_inputs(str(mission.world.path), str(mission.path), check=False)
         return BatchConfig(inputs=inputs, n_iter=1, name="port", rtf=rtf, seed=args.seed,
-                           save_data=not args.no_data, data_root=args.data_root, policy=storage.APPEND,
+                           save_data=not args.skip_save, data_root=args.data_root, policy=storage.APPEND,
                            time_limit=args.time_limit or None, battery_floor=args.battery_floor)
 
     def progress(index, total, mission):

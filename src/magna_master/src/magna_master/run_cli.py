@@ -1,7 +1,7 @@
 """`magna run`: a batch of simulations of one mission in one world, saved under the data root.
 
     magna run --world Gym/1Obs_Central_Cylinder --mission Gym/2UAVs_2paths_Central_Cylinder --n-iter 5 \\
-        [--name NAME] [--dataset N] [--rtf max] [--seed S] [--no-bag] [--no-data] [--rviz] [--search-path DIR ...] \\
+        [--name NAME] [--dataset N] [--rtf max|FACTOR] [--seed S] [--no-bag] [--rviz] [--search-path DIR ...] \\
         [--data-root DIR] [--append|--overwrite|--skip-save] [--time-limit SECONDS] [--launch-command CMD] [--strict]
 
 Exit status: 0 when every simulation ran to a mission outcome (a failed mission is data, not an
@@ -16,6 +16,8 @@ import shlex
 import sys
 from pathlib import Path
 
+from magna_common.cli_vocabulary import add_deprecated_flag, add_rtf, add_search_path
+
 HELP = "run a batch of simulations of a mission in a world; save bags, CSVs and a summary per dataset"
 
 _EPILOG = """\
@@ -24,24 +26,26 @@ Data goes to DATA_ROOT/Simulations/WORLD/SUBWORLD/MISSION/SUBMISSION/NAME/datase
 holding one row per simulation (id, success, outcome, message, duration in simulated s, wall_time,
 collisions). Simulation M runs with seed S+M.
 
-Worlds are looked up as WORLD/SUBWORLD.json, missions as MISSION/SUBMISSION.json: first in each
---search-path DIR (its worlds/ or Worlds/, missions/ or Missions/, or DIR itself), then in the
-project's worlds/ and missions/.
+--world and --mission take a file, or a name looked up as WORLD/SUBWORLD.json and
+MISSION/SUBMISSION.json: first in each --search-path DIR (its worlds/ or Worlds/, missions/ or
+Missions/, or DIR itself), then in the project's worlds/ and missions/. The original ROS-MAGNA
+files are found with --search-path ../shared/ros_magna_corpus.
 
 When simulation folders of this dataset exist already: --append numbers the new ones after the last,
---overwrite deletes and rewrites exactly the folders it runs again (each just before its run),
---skip-save runs without saving anything; with none of them you are asked on a terminal, and
-elsewhere the run stops before starting anything.
+--overwrite deletes and rewrites exactly the folders it runs again (each just before its run); with
+neither you are asked on a terminal, and elsewhere the run stops before starting anything.
+--skip-save saves nothing at all (no folders, no summary, no report); the table is printed at the end.
 
 Ctrl-C stops the running simulation (its processes are ended and it is marked 'interrupted' in
 result.json and summary.csv), starts no more, and keeps every finished one.
 
 examples:
-  magna run --world Gym/1Obs_Central_Cylinder --mission Gym/2UAVs_2paths_Central_Cylinder --n-iter 5 \\
-      --search-path ../shared/ros_magna_corpus
-  magna run --world Gym/1Obs_Central_Cylinder --mission Gym/2UAVs_2paths_Central_Cylinder --n-iter 80 \\
-      --search-path ../shared/ros_magna_corpus --name orca --seed 1000 --append
-  magna run --world worlds/Gym/Four_Cylinders.json --mission my_missions/Gym/Four.json --no-data --rtf 1.0
+  ./magna run --world Gym/Central_Obstacle_Torus --mission Gym/2UAVs_Crossing_ORCA --n-iter 1 --append
+  ./magna run --world Gym/1Obs_Central_Cylinder --mission Gym/2UAVs_2paths_Central_Cylinder \\
+      --search-path ../shared/ros_magna_corpus --n-iter 1 --skip-save
+  ./magna run --world worlds/Gym/Four_Cylinders.json --mission missions/Gym/All_Take_Off.json --skip-save --rtf 1.0
+  ./magna run --world Gym/1Obs_Central_Cylinder --mission Gym/2UAVs_2paths_Central_Cylinder --n-iter 80 \\
+      --search-path ../shared/ros_magna_corpus --name orca --seed 1000 --append   # [long]
 """
 
 
@@ -51,38 +55,36 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
     parser.epilog = _EPILOG
     parser.add_argument("--world", required=True, metavar="WORLD/SUBWORLD",
-                        help="the world file WORLD/SUBWORLD.json, e.g. Gym/1Obs_Central_Cylinder")
+                        help="the world: a name, e.g. Gym/Central_Obstacle_Torus, or a file")
     parser.add_argument("--mission", required=True, metavar="MISSION/SUBMISSION",
-                        help="the mission file MISSION/SUBMISSION.json, e.g. Gym/2UAVs_2paths_Central_Cylinder")
+                        help="the mission: a name, e.g. Gym/2UAVs_Crossing_ORCA, or a file")
     parser.add_argument("--n-iter", type=int, default=1, metavar="N", help="simulations to run (default: 1)")
     parser.add_argument("--name", default=storage.DEFAULT_NAME,
                         help="name of this series of datasets (a folder; default: %(default)s)")
     parser.add_argument("--dataset", type=int, default=1, metavar="N", help="dataset number (default: 1)")
-    parser.add_argument("--rtf", default="max", metavar="max|FACTOR",
-                        help="real-time factor of the simulator: max (as fast as possible) or e.g. 1.0 "
-                             "(default: max)")
+    add_rtf(parser, help="real-time factor of the simulator: 'max' runs as fast as the machine goes, a number "
+                         "(e.g. 1.0) runs that many times real time")
     parser.add_argument("--seed", type=int, default=0, metavar="S",
                         help="base seed; simulation M uses S+M (default: 0)")
     parser.add_argument("--no-bag", action="store_true", help="do not record a bag per simulation")
-    parser.add_argument("--no-data", action="store_true",
-                        help="save nothing (no folders, no summary); the table is printed at the end")
     parser.add_argument("--no-report", action="store_true",
                         help="do not write each simulation's report.html and the dataset's index.html "
                              "(`magna report` writes them later)")
     parser.add_argument("--rviz", action="store_true",
                         help="show each simulation in rviz as it flies (needs a display; without one use "
                              "`magna replay --headless` afterwards)")
-    parser.add_argument("--search-path", action="append", default=[], type=Path, metavar="DIR",
-                        help="also look for worlds and missions here, first (repeatable)")
+    add_search_path(parser)
     parser.add_argument("--data-root", type=Path, default=storage.DEFAULT_DATA_ROOT, metavar="DIR",
                         help="where Simulations/ goes (default: ~/magna_data)")
-    conflict = parser.add_mutually_exclusive_group()
-    conflict.add_argument("--append", dest="policy", action="store_const", const=storage.APPEND,
-                          help="if the dataset has simulations: number the new ones after the last")
-    conflict.add_argument("--overwrite", dest="policy", action="store_const", const=storage.OVERWRITE,
-                          help="if the dataset has simulations: delete and rewrite the ones run again")
-    conflict.add_argument("--skip-save", dest="policy", action="store_const", const=storage.SKIP_SAVE,
-                          help="if the dataset has simulations: run without saving anything")
+    dataset = parser.add_argument_group("the dataset (when its simulation folders exist already)")
+    policy = dataset.add_mutually_exclusive_group()
+    policy.add_argument("--append", dest="policy", action="store_const", const=storage.APPEND,
+                        help="if the dataset has simulations: number the new ones after the last")
+    policy.add_argument("--overwrite", dest="policy", action="store_const", const=storage.OVERWRITE,
+                        help="if the dataset has simulations: delete and rewrite the ones run again")
+    policy.add_argument("--skip-save", action="store_true",
+                        help="save nothing (no folders, no summary, no report); the table is printed at the end")
+    add_deprecated_flag(parser, "--no-data", "skip_save", "--skip-save")
     parser.add_argument("--utm-plan", type=Path, metavar="FILE",
                         help="a UTM flight-plan file (JSON) for missions that follow paths 'from utm'; the UTM "
                              "node issues its plans at their simulated times (format: src/magna_gs/README.md)")
@@ -145,7 +147,7 @@ def build_config(args):
     return BatchConfig(inputs=inputs, n_iter=args.n_iter, utm_plan=utm_plan, battery_floor=args.battery_floor,
                        name=args.name, n_dataset=args.dataset,
                        rtf=args.rtf,
-                       seed=args.seed, bag=not args.no_bag, save_data=not args.no_data,
+                       seed=args.seed, bag=not args.no_bag, save_data=not args.skip_save,
                        data_root=args.data_root, policy=args.policy,
                        time_limit=args.time_limit or None, button_timeout=args.button_timeout,
                        launch_command=command, rviz=args.rviz)

@@ -15,7 +15,8 @@ is a *conflict*; the policy says what to do with it:
 - ``append``: number the new simulations after the last existing one (nothing is touched);
 - ``overwrite``: the only way anything is deleted: each folder that will be rewritten is
   deleted just before its simulation starts, and its summary row with it; other folders stay;
-- ``skip-save``: run the simulations without writing anything;
+- ``skip-save``: run the simulations without writing anything (`magna run --skip-save` asks for it
+  whether or not the dataset holds data);
 - ``abort`` (no policy given and nobody to ask): stop before starting anything, with a
   message that lists the three options.
 
@@ -279,7 +280,7 @@ def plan_storage(dataset_dir: Path, n_iter: int, policy: str | None = None, save
         raise StorageError(f"unknown conflict policy {policy!r}; use one of {', '.join(POLICIES)}")
     planned = list(range(1, n_iter + 1))
     if not save:
-        return StoragePlan(None, planned, reason="saving is off (--no-data)")
+        return StoragePlan(None, planned, reason="saving is off (--skip-save)")
     existing = existing_simulations(dataset_dir)
     if policy == APPEND:
         start = (max(existing) if existing else 0) + 1
