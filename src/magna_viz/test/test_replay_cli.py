@@ -94,8 +94,8 @@ def test_existing_outputs_are_kept_without_force(tmp_path, capsys, existing):
 def test_an_out_folder_that_is_a_file_is_refused(tmp_path, capsys):
     sim = make_sim_dir(tmp_path / "sim")
     (tmp_path / "out").write_text("x")
-    code, err = replay_cmd(capsys, sim, "--headless", "--out", tmp_path / "out")
-    assert code == 2 and "is not a folder" in err
+    code, err = replay_cmd(capsys, sim, "--headless", "-o", tmp_path / "out")
+    assert code == 2 and "is not a folder; choose another with -o/--output" in err
 
 
 def test_a_missing_mission_is_refused(tmp_path, capsys):
@@ -106,11 +106,50 @@ def test_a_missing_mission_is_refused(tmp_path, capsys):
     assert not (sim / "replay").exists()
 
 
-@pytest.mark.parametrize("flag", [["--gif"], ["--every", "2"], ["--out", "x"], ["--force"], ["--size", "640x480"]])
-def test_headless_options_need_headless(tmp_path, capsys, flag):
+@pytest.mark.parametrize("flag, name", [(["--gif"], "--gif"), (["--every", "2"], "--every"),
+                                        (["-o", "x"], "-o/--output"), (["--output", "x"], "-o/--output"),
+                                        (["--out", "x"], "-o/--output"), (["--force"], "--force"),
+                                        (["--size", "640x480"], "--size")])
+def test_headless_options_need_headless(tmp_path, capsys, flag, name):
     sim = make_sim_dir(tmp_path / "sim")
     code, err = replay_cmd(capsys, sim, *flag)
-    assert code == 2 and f"{flag[0]} only applies with --headless" in err
+    assert code == 2 and err.splitlines()[-1] == f"magna replay: {name} only applies with --headless (screenshots); " \
+                                                 "add --headless"
+
+
+def test_out_is_the_old_spelling_of_output(capsys):
+    from magna_common.cli_vocabulary import deprecation_line
+
+    args = cli.build_parser().parse_args(["replay", "sim", "--headless", "--out", "pictures"])
+    assert args.output == Path("pictures")
+    assert capsys.readouterr().err.splitlines() == [deprecation_line("magna replay", "--out", "-o/--output")]
+    args = cli.build_parser().parse_args(["replay", "sim", "--headless", "--output", "pictures"])
+    assert args.output == Path("pictures") and capsys.readouterr().err == ""
+
+
+def test_the_mission_may_be_a_name_looked_up_as_magna_run_does(tmp_path, capsys):
+    from magna_viz.replay_cli import options_from
+
+    sim = tmp_path / "sim"
+    args = cli.build_parser().parse_args(["replay", str(sim), "--headless", "--mission", "Gym/2UAVs_Crossing_ORCA"])
+    assert options_from(args).mission_file == MISSION
+    (tmp_path / "mine" / "missions" / "Gym").mkdir(parents=True)
+    mine = tmp_path / "mine" / "missions" / "Gym" / "2UAVs_Crossing_ORCA.json"
+    mine.write_text(MISSION.read_text())
+    args = cli.build_parser().parse_args(["replay", str(sim), "--headless", "--mission", "Gym/2UAVs_Crossing_ORCA",
+                                          "--search-path", str(tmp_path / "mine")])
+    assert options_from(args).mission_file == mine
+    file_args = cli.build_parser().parse_args(["replay", str(sim), "--headless", "--mission", str(mine)])
+    assert options_from(file_args).mission_file == mine
+
+
+def test_a_mission_name_found_nowhere_lists_where_it_looked(tmp_path, capsys):
+    sim = make_sim_dir(tmp_path / "sim")
+    code, err = replay_cmd(capsys, sim, "--headless", "--mission", "Gym/No_Such_Mission")
+    assert code == 2 and len(err.splitlines()) == 1
+    assert err.startswith("magna replay: --mission Gym/No_Such_Mission: no such mission; looked at ")
+    assert str(ROOT / "missions" / "Gym" / "No_Such_Mission.json") in err
+    assert not (sim / "replay").exists()
 
 
 @pytest.mark.parametrize("args, message", [

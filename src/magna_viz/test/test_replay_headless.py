@@ -43,7 +43,7 @@ def replayed(recorded_run, tmp_path_factory):
     token = f"magna-replay-test-{os.getpid()}"
     before = sorted(p.name for p in recorded_run.sim_dir.iterdir())
     done = magna_replay(recorded_run.sim_dir, "--headless", "--speed", "8", "--every", "8", "--gif", "--mp4",
-                        "--size", "960x540", "--out", out, token=token)
+                        "--size", "960x540", "-o", out, token=token)
     return recorded_run, out, done, token, before
 
 
@@ -94,7 +94,7 @@ def test_the_colours_come_from_the_mission_file(replayed, tmp_path):
     (tmp_path / "mission.json").write_text(json.dumps(mission))
     token = f"magna-replay-test-recoloured-{os.getpid()}"
     done = magna_replay(run.sim_dir / "simulation.bag", "--headless", "--speed", "8", "--every", "0",
-                        "--size", "960x540", "--mission", tmp_path / "mission.json", "--out", tmp_path / "out",
+                        "--size", "960x540", "--mission", tmp_path / "mission.json", "--output", tmp_path / "out",
                         token=token)
     assert done.returncode == 0, done.stdout + done.stderr
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["final.png"]

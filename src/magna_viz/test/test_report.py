@@ -99,8 +99,12 @@ def test_the_command_keeps_an_existing_report_without_force(tmp_path, capsys):
     sim_dir = fake_simulation(tmp_path, 1)
     (sim_dir / "report.html").write_text("mine")
     assert cli.main(["report", str(sim_dir)]) == 2
-    assert "pass --force" in capsys.readouterr().err
+    assert capsys.readouterr().err == (f"magna report: {sim_dir / 'report.html'} already exists (magna run writes it); "
+                                       "pass --force to write it again\n")
     assert (sim_dir / "report.html").read_text() == "mine"
+    assert cli.main(["report", str(sim_dir), "--force"]) == 0
+    assert (sim_dir / "report.html").read_text() != "mine"
+    assert f"report: {sim_dir / 'report.html'}" in capsys.readouterr().out
 
 
 def test_the_command_on_a_dataset_writes_missing_reports_and_the_index(tmp_path, capsys):

@@ -230,7 +230,7 @@ def make_plan(options: ReplayOptions, environ: dict | None = None) -> Plan:
     if options.headless:
         out_dir = Path(options.out_dir).expanduser() if options.out_dir else sim_dir / OUT_DIR_NAME
         if out_dir.exists() and not out_dir.is_dir():
-            raise ReplayError(f"{out_dir}: exists and is not a folder; choose another with --out")
+            raise ReplayError(f"{out_dir}: exists and is not a folder; choose another with -o/--output")
 
     bag = read_bag(bag_path)
     world = rc.world_of_sim_dir(sim_dir)
@@ -259,7 +259,7 @@ def make_plan(options: ReplayOptions, environ: dict | None = None) -> Plan:
             in_the_way += sorted(out_dir.glob("frame_*.png"))[:1]
         if in_the_way and not options.force:
             raise ReplayError(f"{in_the_way[0]} exists; use --force to replace the replay's outputs in {out_dir} "
-                              "(or --out another folder)")
+                              "(or -o/--output another folder)")
     return plan
 
 

@@ -1,8 +1,7 @@
 """`magna report`: the HTML report of a simulation, or of every simulation of a dataset plus its index.
 
-    magna report ~/magna_data/Simulations/.../dataset_1/simulation_3      # simulation_3/report.html
-    magna report ~/magna_data/Simulations/.../dataset_1                   # missing reports + index.html
-    magna report ... --force                                              # write existing reports again
+    magna report SIM_DIR [--force]       # SIM_DIR/report.html (magna run wrote it already: --force again)
+    magna report DATASET_DIR [--force]   # the reports still missing (all with --force) + index.html
 """
 from __future__ import annotations
 
@@ -10,15 +9,24 @@ import argparse
 import sys
 from pathlib import Path
 
+# The dataset the root README's `make run` leaves, which examples name.
+EXAMPLE_DATASET = "~/magna_data/Simulations/Gym/Central_Obstacle_Torus/Gym/2UAVs_Crossing_ORCA/default/dataset_1"
+
 HELP = "write the HTML report of a simulation (plots, result, mission), or of a dataset with its index page"
 
-_EPILOG = """\
+_EPILOG = f"""\
 A simulation folder (simulation_<m>, with result.json) gets report.html and plots/*.png beside its
 bag and CSVs. A dataset folder (dataset_<n>) gets a report for each simulation that has none yet
 (all of them with --force) and index.html, the summary table linking every report. `magna run`
-writes both as it goes, unless --no-report.
+writes both as it goes, unless --no-report: to write a simulation's report again (after a change
+to MAGNA, say), pass --force.
 
 Reading needs no ROS master: the bag is read with rosbags, the CSVs with pandas.
+
+examples:
+  ./magna report {EXAMPLE_DATASET}/simulation_1 --force
+  ./magna report {EXAMPLE_DATASET}          # only the missing reports, and index.html
+  ./magna report {EXAMPLE_DATASET} --force   # every report again
 """
 
 
@@ -42,7 +50,8 @@ def run(args) -> int:
             raise UsageError(f"{folder}: no such folder; give a simulation_<m> or dataset_<n> folder of `magna run`")
         if (folder / "result.json").exists():
             if (folder / REPORT_FILE).exists() and not args.force:
-                raise UsageError(f"{folder / REPORT_FILE}: already exists; pass --force to write it again")
+                raise UsageError(f"{folder / REPORT_FILE} already exists (magna run writes it); pass --force to "
+                                 "write it again")
             jobs.append((folder, [folder]))
         elif sims := simulation_dirs(folder):
             jobs.append((folder, sims))
