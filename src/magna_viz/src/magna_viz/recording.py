@@ -10,7 +10,7 @@ A simulation folder (magna_master.storage) holds:
     world.json      the world node's record of every world part (magna_viz.recorded_world)
     result.json     the batch's verdict: success, outcome, message, sim_duration, collisions, hyperparameters
 
-Either the bag or the CSVs may be missing (`magna run --no-bag` / `--no-data`): what exists is used and
+Either the bag or the CSVs may be missing (`magna run --no-bag` / `--skip-save`): what exists is used and
 `Recording.notes` says what is missing and what that costs. Per UAV, positions and velocities come from
 the bag (the simulator's 30 Hz) when it has them, else from the CSV. So do distances: computed from the
 bag as the managers' evaluator computes them (centre distance to every other UAV; distance to the real
@@ -179,7 +179,7 @@ def load_recording(sim_dir: str | Path) -> Recording:
     csvs = {int(m.group(1)): p for p in sorted(sim_dir.iterdir()) if (m := CSV_PATTERN.fullmatch(p.name))}
     if not bag_file.is_file() and not csvs:
         raise RecordingError(f"{sim_dir}: neither {BAG_NAME} nor any uav_<id>.csv: nothing to plot; fly the "
-                             "simulation again without --no-bag / --no-data (magna run)")
+                             "simulation again without --no-bag / --skip-save (magna run)")
     bag = None
     if bag_file.is_file():
         try:
@@ -194,7 +194,7 @@ def load_recording(sim_dir: str | Path) -> Recording:
         notes.append(f"{BAG_NAME} missing (flown with --no-bag?): no state-machine timeline, paths, goals or "
                      "latency; trajectories from the CSVs")
     if not csvs:
-        notes.append("no uav_<id>.csv (flown with --no-data?)")
+        notes.append("no uav_<id>.csv (flown with --skip-save?)")
     configs = _mission_configs(sim_dir, notes)
     frames = {}
     for uav, path in csvs.items():

@@ -3,7 +3,7 @@
 It shows the result (result.json), each UAV's figures, the mission's state machine with the states
 that ran highlighted (the branch the mission took), and the plots of magna_viz.plots, which are
 also kept as PNGs in `plots/` for papers and slides. A simulation without a usable recording
-(it never started, or ran with --no-bag --no-data) still gets a report: its result and why there
+(it never started, or ran with --no-bag --skip-save) still gets a report: its result and why there
 are no plots.
 """
 from __future__ import annotations
@@ -96,13 +96,13 @@ def _mission_picture(sim_dir: Path, timeline, notes: list[str]) -> Path | None:
     """The mission's machine (from its mission.json) with every state that ran highlighted."""
     from magna_gs.mission.build import InertFactory, build_machine
     from magna_gs.mission.loader import MissionError, load_mission
-    from magna_sm.draw import DrawError, render, structures_of, to_dot
+    from magna_sm.draw import DrawError, draw_structures, structures_of
 
     try:
         loaded = load_mission(sim_dir / "mission.json")
         machine = build_machine(loaded.mission, InertFactory(), loaded.plan)
         ran = {interval.path for interval in timeline.intervals}
-        return render(to_dot(structures_of(machine), ran), sim_dir / PLOTS_DIR / MISSION_PICTURE)
+        return draw_structures(structures_of(machine), sim_dir / PLOTS_DIR / MISSION_PICTURE, ran)
     except (MissionError, DrawError, OSError, ValueError) as error:
         notes.append(f"no mission picture: {error}")
         return None
