@@ -27,6 +27,8 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from tests.support import ros_nodes
+
 ROOT = Path(__file__).resolve().parents[1]
 
 NOT_RUN_MARKS = ("display", "microphone", "hardware", "long", "fresh clone", "synopsis")
@@ -218,18 +220,6 @@ def help_blocks() -> list[Block]:
     return blocks
 
 
-def ros_nodes(root: Path = ROOT) -> list[tuple[str, str]]:
-    """(package, node) for every node a user can rosrun: each package's nodes/ and installed C++ programs."""
-    found = []
-    for package in sorted(path.parent for path in root.glob("src/*/package.xml")):
-        found += [(package.name, node.name) for node in sorted((package / "nodes").glob("*")) if node.is_file()]
-        cmake = package / "CMakeLists.txt"
-        if cmake.exists():
-            found += [(package.name, name) for name in
-                      re.findall(r"install\(TARGETS\s+(\w+)\s+RUNTIME", cmake.read_text())]
-    return found
-
-
 def node_help_blocks(env: dict[str, str], root: Path = ROOT, timeout: float = 60.0) -> tuple[list[Block], list[str]]:
     """The `examples:` of every node's `rosrun PACKAGE NODE --help`, one block per node, and the
     nodes whose --help failed."""
@@ -377,14 +367,6 @@ def write_table(outcomes: list[Outcome], path: Path) -> None:
     tmp = path.with_suffix(path.suffix + ".tmp")
     tmp.write_text("\n".join(rows) + "\n")
     tmp.replace(path)
-
-
-def free_port() -> int:
-    import socket
-
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
 
 
 def new_untracked_files(root: Path, since: float) -> list[str]:

@@ -1,5 +1,6 @@
 """Helpers shared by tests of several packages (importable as tests.support)."""
 import os
+import re
 import time
 from pathlib import Path
 
@@ -18,3 +19,17 @@ def wait_until(predicate, what: str, timeout: float = WAIT, poll: float = 0.005)
             return
         time.sleep(poll)
     raise AssertionError(f"timed out waiting for {what}")
+
+
+def ros_nodes(root: Path = ROOT) -> list[tuple[str, str]]:
+    """(package, node) for every node a user can rosrun: the scripts in each package's nodes/, those
+    installed by catkin_install_python, and the C++ programs installed as RUNTIME targets."""
+    found = set()
+    for package in sorted(path.parent for path in root.glob("src/*/package.xml")):
+        found |= {(package.name, script.name) for script in (package / "nodes").glob("*") if script.is_file()}
+        cmake = package / "CMakeLists.txt"
+        text = cmake.read_text() if cmake.is_file() else ""
+        for programs in re.findall(r"catkin_install_python\s*\(\s*PROGRAMS(.*?)DESTINATION", text, re.S):
+            found |= {(package.name, os.path.basename(program)) for program in programs.split()}
+        found |= {(package.name, name) for name in re.findall(r"install\(TARGETS\s+(\w+)\s+RUNTIME", text)}
+    return sorted(found)

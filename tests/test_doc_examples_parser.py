@@ -1,6 +1,7 @@
 """How the docs test finds examples: README blocks, help sections, comments and marks."""
 import pytest
 
+from magna_master.ros_master import free_port
 from tests import doc_examples
 
 
@@ -46,7 +47,7 @@ def test_a_block_runs_in_one_shell_and_reports_each_line(tmp_path):
         # (runs in the block's shell, as `export` lines do, to wait for the one before to end)
         doc_examples.Example("s:7", "export X=1; while kill -0 $background_5 2> /dev/null; do sleep 0.05; done"),
     ])
-    env = doc_examples.user_environment(tmp_path / "home", doc_examples.free_port())
+    env = doc_examples.user_environment(tmp_path / "home", free_port())
     outcomes = doc_examples.run_block(block, env, tmp_path / "work", timeout=60)
     assert [o.status for o in outcomes] == ["passed", "passed", "failed", "passed", "not run: display",
                                                  "failed", "passed"]

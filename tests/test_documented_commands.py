@@ -16,6 +16,7 @@ import time
 
 import pytest
 
+from magna_master.ros_master import free_port
 from tests import doc_examples
 
 RESULTS = doc_examples.ROOT / "build" / "magna_test_results" / "documented_commands.md"
@@ -42,7 +43,7 @@ BLOCKS, PROBLEMS = _collect()
 def newcomer(tmp_path_factory, request):
     """A user's shell: fresh HOME, a free ROS master port, nothing sourced; collects every outcome."""
     home = tmp_path_factory.mktemp("home")
-    state = {"env": doc_examples.user_environment(home, doc_examples.free_port()), "home": home,
+    state = {"env": doc_examples.user_environment(home, free_port()), "home": home,
              "work": tmp_path_factory.mktemp("doc_examples"), "outcomes": []}
     yield state
     outcomes = state["outcomes"]

@@ -1,44 +1,25 @@
 """Every node script answers `rosrun PKG NODE --help` with its usage and exit status 0, without a ROS master.
 
-The nodes are the scripts under src/*/nodes/ and every program a package installs with
-catkin_install_python. ROS_MASTER_URI points at a free port where nothing listens, so a node
+The nodes are tests.support.ros_nodes(): scripts under src/*/nodes/, programs installed with
+catkin_install_python, and installed C++ programs. ROS_MASTER_URI points at a free port where nothing listens, so a node
 that starts ROS before reading its arguments hangs (rospy keeps trying to register) and fails
 here at the timeout; its whole process group is ended.
 """
 from __future__ import annotations
 
 import os
-import re
 import signal
-import socket
 import subprocess
 
 import pytest
 
-from tests.support import ROOT
+from magna_master.ros_master import free_port
+from tests.support import ros_nodes
 
 TIMEOUT = 60.0  # s: a guard against a node that waits for a master, not a speed expectation
 
 
-def node_scripts() -> list[tuple[str, str]]:
-    """(package, node) for every script in a nodes/ folder or installed by catkin_install_python."""
-    found = set()
-    for package in sorted(path for path in (ROOT / "src").iterdir() if (path / "package.xml").is_file()):
-        found |= {(package.name, script.name) for script in (package / "nodes").glob("*") if script.is_file()}
-        cmake = package / "CMakeLists.txt"
-        text = cmake.read_text() if cmake.is_file() else ""
-        for programs in re.findall(r"catkin_install_python\s*\(\s*PROGRAMS(.*?)DESTINATION", text, re.S):
-            found |= {(package.name, os.path.basename(program)) for program in programs.split()}
-    return sorted(found)
-
-
-NODES = node_scripts()
-
-
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
+NODES = ros_nodes()
 
 
 def test_the_nodes_are_found():
@@ -63,4 +44,4 @@ def test_node_help_prints_usage_without_a_master(package, node, tmp_path):
             os.killpg(process.pid, signal.SIGKILL)
             process.wait()
     assert process.returncode == 0, f"exit status {process.returncode}:\n{out[-2000:]}\n{err[-2000:]}"
-    assert out.lstrip().startswith("usage: "), out[:500]
+    assert out.lstrip().lower().startswith("usage: "), out[:500]  # argparse: "usage:", the C++ node: "Usage:"
