@@ -5,14 +5,12 @@ Only UAL names are used, so it works against any UAL server.
 from __future__ import annotations
 
 import argparse
-import ast
 import math
-import re
 import sys
 
+from magna_common.ros_errors import service_error_text
+
 # How rospy's client wraps a server's refusal; the reason comes as a bytes literal under Python 3.
-_WRAPPED = re.compile(r"service \[(?P<name>[^\]]*)\] responded with an error: (?P<reason>.*)", re.S)
-_SERVER_PREFIXES = ("service cannot process request: ", "error processing request: ")
 
 
 DESCRIPTION = """\
@@ -68,24 +66,6 @@ def main(argv=None) -> int:
         print(f"fly: {service_error_text(err)}", file=sys.stderr)
         return 1
     return 0
-
-
-def service_error_text(error: BaseException) -> str:
-    """`/uav_1/ual/land: land refused: ...` for rospy's `service [/uav_1/ual/land] responded with an
-    error: b'service cannot process request: land refused: ...'`; any other error as it is."""
-    text = str(error)
-    match = _WRAPPED.fullmatch(text)
-    if match is None:
-        return text
-    reason = match["reason"]
-    if reason[:2] in ("b'", 'b"'):
-        try:
-            reason = ast.literal_eval(reason).decode("utf-8", "replace")
-        except (ValueError, SyntaxError, AttributeError):
-            pass
-    for prefix in _SERVER_PREFIXES:
-        reason = reason.removeprefix(prefix)
-    return f"{match['name']}: {reason}"
 
 
 def run(args) -> None:

@@ -15,6 +15,8 @@ import rospy
 from geometry_msgs.msg import PoseStamped, TwistStamped
 from uav_abstraction_layer.srv import GoToWaypoint, Land, SetHome, TakeOff
 
+from magna_common.ros_errors import service_error_text
+
 FRAME = "map"
 
 
@@ -54,7 +56,7 @@ class UalCommander:
         try:
             return self._services[name](**request)
         except rospy.ServiceException as error:
-            raise CommandRefused(f"UAV {self.uav_id}: {name} refused: {error}") from None
+            raise CommandRefused(f"UAV {self.uav_id}: {name} refused: {service_error_text(error)}") from None
 
     def take_off(self, height: float) -> None:
         self._call("take_off", height=float(height), blocking=False)
