@@ -6,7 +6,7 @@ for our server+client, actionlib's server+client and the two cross pairs, on a
 private ROS master, server and client in this one process (one rospy node).
 Prints figures; never fails on a time.
 
-    bash scripts/with_env.sh python bench/action_roundtrip.py [--goals N]
+    python bench/action_roundtrip.py [--goals N]
 """
 from __future__ import annotations
 
@@ -17,6 +17,12 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+if __name__ == "__main__":  # `python bench/action_roundtrip.py` from any Python runs in the workspace (bench/README.md)
+    sys.path.append(str(Path(__file__).resolve().parents[1] / "src" / "magna_common" / "src"))
+    from magna_common.workspace_bootstrap import run_script_in_workspace
+
+    run_script_in_workspace(__file__, modules=("rospy", "actionlib", "magna_sm", "magna_master"))
 
 ROOT = Path(__file__).resolve().parent.parent
 _DEVEL = ROOT / "devel" / "lib" / "python3" / "dist-packages"

@@ -16,11 +16,12 @@ Per fleet size N, in a process of its own (rospy allows one node per process):
 Prints p50 / p90 / p99 per fleet size, the service's round trip, the same latency in simulated time
 (stamp of that velocity message minus the /clock at the call), how fast the simulation really ran,
 and the growth of p50 from 1 to 10 UAVs, against DESIGN.md section 6: p50 <= 50 ms wall, growing
-<= 20% from 1 to 10 UAVs. Saves bench/pictures/command_latency.png (box plot and CDF per fleet size, the
-figure of magna_viz.plots.plot_latency_distribution).
+<= 20% from 1 to 10 UAVs. Saves the box plot and CDF per fleet size (the figure of
+magna_viz.plots.plot_latency_distribution) to -o/--output, by default bench/pictures/command_latency.png,
+which it replaces only with --force (checked before measuring).
 Never fails on a time. The default run takes about 8 minutes.
 
-    bash scripts/with_env.sh python bench/command_latency.py [--fleets 1 2 3 10] [--trials 30] [--agent 1|all]
+    python bench/command_latency.py [--fleets 1 2 3 10] [--trials 30] [--agent 1|all] [-o PATH.png] [--force]
 """
 from __future__ import annotations
 
@@ -38,7 +39,13 @@ import time
 import uuid
 from pathlib import Path
 
-import numpy as np
+if __name__ == "__main__":  # `python bench/command_latency.py` from any Python runs in the workspace (bench/README.md)
+    sys.path.append(str(Path(__file__).resolve().parents[1] / "src" / "magna_common" / "src"))
+    from magna_common.workspace_bootstrap import run_script_in_workspace
+
+    run_script_in_workspace(__file__, modules=("numpy", "rospy", "magna_master", "magna_viz"))
+
+import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 PICTURE = ROOT / "bench" / "pictures" / "command_latency.png"
@@ -262,7 +269,7 @@ def percentile(values, q: float) -> float:
     return float(np.percentile(values, q)) if len(values) else math.nan
 
 
-def draw(rows: list[dict], path: Path, agent: str) -> None:
+def draw(rows: list[dict], path: Path, agent: str, rtf: str = "1") -> None:
     """Box plot and CDF of the wall latency per fleet size, with the p50 target: the figure magna_viz's
     per-simulation reports also draw (magna_viz.plots.plot_latency_distribution)."""
     from magna_viz.plots import plot_latency_distribution
@@ -270,7 +277,8 @@ def draw(rows: list[dict], path: Path, agent: str) -> None:
     samples = {f"{r['n']} UAV" + ("s" if r["n"] > 1 else ""): np.array(r["latency"]) * 1000 for r in rows
                if r["latency"]}
     plot_latency_distribution(
-        samples, path, f"/magna/gs/command basic_action move 0.5 m (agent {agent}) -> /uav_1/ual/velocity, rtf 1.0",
+        samples, path,
+        f"/magna/gs/command basic_action move 0.5 m (agent {agent}) -> /uav_1/ual/velocity, rtf {rtf}",
         "ms", value_label="command -> first motion of UAV 1 (ms, wall)", group_label="UAVs in the simulation",
         reference=(TARGET_P50_S * 1000, "target p50 50 ms"))
 
@@ -292,27 +300,56 @@ def run_worker(argv: list[str]) -> None:
         raise subprocess.CalledProcessError(code, argv)
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def build_parser() -> argparse.ArgumentParser:
+    from magna_common.cli_vocabulary import add_deprecated_option, add_force, add_output, add_rtf
+
+    parser = argparse.ArgumentParser(prog="python bench/command_latency.py", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--fleets", type=int, nargs="+", default=[1, 2, 3, 10], help="fleet sizes (max 10)")
     parser.add_argument("--trials", type=int, default=30, help="commands measured per fleet size (default 30)")
     parser.add_argument("--warmup", type=int, default=2, help="commands sent first and not counted (default 2)")
     parser.add_argument("--agent", default="1", help='the command\'s agent: "1" (default) or "all"')
     parser.add_argument("--distance", type=float, default=0.5, help="metres per move (default 0.5)")
     parser.add_argument("--threshold", type=float, default=0.05, help="|v| in m/s that counts as motion")
-    parser.add_argument("--rtf", default="1.0", help="real-time factor of the simulator (default 1.0)")
+    add_rtf(parser, default="1.0", help="real-time factor of the simulator: the latency is a wall time, so 1.0")
     parser.add_argument("--trial-timeout", type=float, default=5.0, help="wall s to wait for motion")
     parser.add_argument("--start-timeout", type=float, default=180.0, help="wall s for the mission to wait")
-    parser.add_argument("--picture", type=Path, default=PICTURE, help=f"where the plot goes (default {PICTURE})")
+    add_output(parser, default=PICTURE, metavar="PATH.png", old=("--picture",),
+               help=f"where the plot goes (default {PICTURE.relative_to(ROOT)})")
+    add_force(parser, help="replace the plot if it exists (checked before measuring)")
     parser.add_argument("--worker", type=int, help=argparse.SUPPRESS)  # one fleet size, in its own process
-    parser.add_argument("--out", help=argparse.SUPPRESS)
-    args = parser.parse_args(argv)
+    parser.add_argument("--worker-output", type=Path, help=argparse.SUPPRESS)  # where that process writes its row
+    add_deprecated_option(parser, "--out", "worker_output", "--worker-output", type=Path)
+    return parser
+
+
+def check_args(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """Bad options end here, before anything starts (parser.error: status 2)."""
+    from magna_common.cli_vocabulary import OutputExists, check_output
+    from magna_master.batch import BatchError, parse_rtf
+
+    try:
+        args.rtf = parse_rtf(args.rtf)
+    except BatchError as error:
+        parser.error(str(error))
     if args.worker:
-        with tempfile.TemporaryDirectory(prefix=f"command_latency_{args.worker}_") as folder:
-            Path(args.out).write_text(json.dumps(measure_fleet(args.worker, args, Path(folder))))
-        return 0
+        return
     if any(not 1 <= n <= 10 for n in args.fleets):
         parser.error("fleet sizes go from 1 to 10 (the pads)")
+    try:
+        check_output(args.output, args.force, "the plot")
+    except OutputExists as error:
+        parser.error(str(error))
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    check_args(parser, args)
+    if args.worker:
+        with tempfile.TemporaryDirectory(prefix=f"command_latency_{args.worker}_") as folder:
+            args.worker_output.write_text(json.dumps(measure_fleet(args.worker, args, Path(folder))))
+        return 0
     rows = []
     passthrough = ["--trials", str(args.trials), "--warmup", str(args.warmup), "--agent", args.agent,
                    "--distance", str(args.distance), "--threshold", str(args.threshold), "--rtf", args.rtf,
@@ -321,7 +358,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{n} UAV(s): {args.warmup} + {args.trials} commands (load average {os.getloadavg()[0]:.1f}) ...",
               flush=True)
         with tempfile.NamedTemporaryFile(suffix=".json") as out:
-            run_worker([sys.executable, __file__, "--worker", str(n), "--out", out.name, *passthrough])
+            run_worker([sys.executable, __file__, "--worker", str(n), "--worker-output", out.name, *passthrough])
             row = json.loads(Path(out.name).read_text())
         if row["error"]:
             print(f"   failed: {row['error']}", flush=True)
@@ -363,8 +400,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"growth of p50 from {low} to {high} UAVs: {100 * growth:+.0f}% (target <= {100 * TARGET_GROWTH:.0f}%: "
               f"{'meets' if growth <= TARGET_GROWTH else 'misses'}); of p90: {100 * growth90:+.0f}%")
     if by_n:
-        draw(rows, args.picture, args.agent)
-        print(f"picture: {args.picture}")
+        draw(rows, args.output, args.agent, args.rtf)
+        print(f"picture: {args.output}")
     return 0
 
 

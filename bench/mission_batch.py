@@ -30,8 +30,8 @@ The table compares with DESIGN.md section 6: >= 10x real time with 2 UAVs, >= 3x
 80 simulations in <= 20 minutes (on 2 cores). Prints figures; never fails on a time. The default
 run takes about 25 minutes (the 80 simulations about 20 of them); --simulations 0 skips (b).
 
-    bash scripts/with_env.sh python bench/mission_batch.py [--repeats 3] [--simulations 80]
-        [--no-bag-10] [--keep-data DIR]
+    python bench/mission_batch.py [--repeats 3] [--simulations 80]
+        [--no-bag-10] [-o DIR]
 """
 from __future__ import annotations
 
@@ -47,6 +47,12 @@ import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+
+if __name__ == "__main__":  # `python bench/mission_batch.py` from any Python runs in the workspace (bench/README.md)
+    sys.path.append(str(Path(__file__).resolve().parents[1] / "src" / "magna_common" / "src"))
+    from magna_common.workspace_bootstrap import run_script_in_workspace
+
+    run_script_in_workspace(__file__)
 
 ROOT = Path(__file__).resolve().parent.parent
 MAGNA = ROOT / "magna"
@@ -188,24 +194,32 @@ def fmt_ratio(value: float, target: float, higher_is_better: bool = True) -> str
     return f"{ratio:5.2f} {'meets' if ratio >= 1.0 else 'misses'}"
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def build_parser() -> argparse.ArgumentParser:
+    from magna_common.cli_vocabulary import add_output
+
+    parser = argparse.ArgumentParser(prog="python bench/mission_batch.py", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--repeats", type=int, default=3, help="simulations per speed measurement (default 3)")
     parser.add_argument("--simulations", type=int, default=80,
                         help="size of the timed dataset of the default mission (default 80; 0: skip it)")
     parser.add_argument("--no-bag-10", action="store_true", help="also run the 10-UAV mission without bags")
-    parser.add_argument("--keep-data", type=Path, metavar="DIR",
-                        help="keep the simulations' data (bags, CSVs) under DIR instead of a temporary folder")
+    add_output(parser, metavar="DIR", old=("--keep-data",),
+               help="keep the simulations' data (bags, CSVs) in a new folder under DIR, instead of a temporary "
+                    "folder removed at the end")
     parser.add_argument("--time-limit", type=float, default=600.0,
                         help="wall seconds per simulation before magna run stops it (default 600)")
-    args = parser.parse_args(argv)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
     if not MAGNA.is_file():
         raise SystemExit(f"{MAGNA} is missing")
     if not MISSION_10.is_file():
         raise SystemExit(f"{MISSION_10} is missing")
-    if args.keep_data:
-        args.keep_data.mkdir(parents=True, exist_ok=True)
-        data_root = Path(tempfile.mkdtemp(prefix="mission_batch_", dir=args.keep_data))
+    if args.output:
+        args.output.mkdir(parents=True, exist_ok=True)
+        data_root = Path(tempfile.mkdtemp(prefix="mission_batch_", dir=args.output))
     else:
         data_root = Path(tempfile.mkdtemp(prefix="mission_batch_"))
     print(f"{os.cpu_count()} cores; data under {data_root}", flush=True)
@@ -228,7 +242,7 @@ def main(argv: list[str] | None = None) -> int:
             speed.append(dataset)
     finally:
         size = sum(f.stat().st_size for f in data_root.rglob("*") if f.is_file()) / 1e6
-        if args.keep_data:
+        if args.output:
             print(f"data kept: {data_root} ({size:.0f} MB)", flush=True)
         else:
             shutil.rmtree(data_root, ignore_errors=True)

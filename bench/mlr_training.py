@@ -5,7 +5,7 @@ else on synthetic samples of the same shape (12 inputs, 25,000 samples). First a
 thread counts (same steps, same run), then the full run with the faster count. Prints a table; never fails on a
 time.
 
-    bash scripts/with_env.sh python bench/mlr_training.py [--steps 250000] [--probe-steps 5000]
+    python bench/mlr_training.py [--steps 250000] [--probe-steps 5000]
 """
 from __future__ import annotations
 
@@ -16,7 +16,13 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-import numpy as np
+if __name__ == "__main__":  # `python bench/mlr_training.py` from any Python runs in the workspace (bench/README.md)
+    sys.path.append(str(Path(__file__).resolve().parents[1] / "src" / "magna_common" / "src"))
+    from magna_common.workspace_bootstrap import run_script_in_workspace
+
+    run_script_in_workspace(__file__, modules=("numpy", "torch", "magna_uav"))
+
+import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))

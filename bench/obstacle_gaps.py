@@ -6,19 +6,27 @@ others reuse it. Prints microseconds per step for 10, 100 and 500 obstacles made
 boxes, cylinders and spheres (plus 2 tori of 4096 triangles each), against the same
 obstacles known only by their bounding spheres. Never fails on a time.
 
-    bash scripts/with_env.sh python bench/obstacle_gaps.py [--steps N]
+    python bench/obstacle_gaps.py [--steps N]
 """
 from __future__ import annotations
 
 import argparse
 import math
+import sys
 import time
+from pathlib import Path
 
-import numpy as np
+if __name__ == "__main__":  # `python bench/obstacle_gaps.py` from any Python runs in the workspace (bench/README.md)
+    sys.path.append(str(Path(__file__).resolve().parents[1] / "src" / "magna_common" / "src"))
+    from magna_common.workspace_bootstrap import run_script_in_workspace
 
-from magna_uav.shapes import Box, Cylinder, Mesh, Sphere
-from magna_uav.world_view import AgentState, Obstacle, WorldView
-from magna_worlds.shapes import torus_mesh
+    run_script_in_workspace(__file__, modules=("numpy", "magna_uav", "magna_worlds"))
+
+import numpy as np  # noqa: E402
+
+from magna_uav.shapes import Box, Cylinder, Mesh, Sphere  # noqa: E402
+from magna_uav.world_view import AgentState, Obstacle, WorldView  # noqa: E402
+from magna_worlds.shapes import torus_mesh  # noqa: E402
 
 
 def yaw(angle: float) -> np.ndarray:

@@ -9,7 +9,7 @@ Prints, in one run:
 Targets (DESIGN.md section 6): <= 5 us per agent with 10 neighbours, >= 50x the numpy
 reference, 1000 agents in < 5 ms. Never fails on a time.
 
-    bash scripts/with_env.sh python bench/orca3d.py [--scenarios N] [--calls N] [--no-service]
+    python bench/orca3d.py [--scenarios N] [--calls N] [--no-service]
 """
 from __future__ import annotations
 
@@ -21,11 +21,17 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
+if __name__ == "__main__":  # `python bench/orca3d.py` from any Python runs in the workspace (bench/README.md)
+    sys.path.append(str(Path(__file__).resolve().parents[1] / "src" / "magna_common" / "src"))
+    from magna_common.workspace_bootstrap import run_script_in_workspace
 
-from magna_orca_cpp import native, reference
-from magna_orca_cpp.model import Params, agent_rows
-from magna_orca_cpp.scenarios import crowd, random_scenario
+    run_script_in_workspace(__file__, modules=("numpy", "magna_orca_cpp"))
+
+import numpy as np  # noqa: E402
+
+from magna_orca_cpp import native, reference  # noqa: E402
+from magna_orca_cpp.model import Params, agent_rows  # noqa: E402
+from magna_orca_cpp.scenarios import crowd, random_scenario  # noqa: E402
 
 NEIGHBOR_COUNTS = (1, 5, 10, 50)
 TARGET_US_PER_AGENT = 5.0

@@ -8,7 +8,7 @@
    subscriber to every UAV's pose, velocity and state.
 Prints one table with the ratios to the 10x target; never fails on a time.
 
-    bash scripts/with_env.sh python bench/sim_speed.py [--seconds 10]
+    python bench/sim_speed.py [--seconds 10]
 """
 from __future__ import annotations
 
@@ -19,6 +19,12 @@ import tempfile
 import threading
 import time
 from pathlib import Path
+
+if __name__ == "__main__":  # `python bench/sim_speed.py` from any Python runs in the workspace (bench/README.md)
+    sys.path.append(str(Path(__file__).resolve().parents[1] / "src" / "magna_common" / "src"))
+    from magna_common.workspace_bootstrap import run_script_in_workspace
+
+    run_script_in_workspace(__file__, modules=("rospy", "magna_sim", "magna_master"))
 
 ROOT = Path(__file__).resolve().parent.parent
 _DEVEL = ROOT / "devel" / "lib" / "python3" / "dist-packages"

@@ -5,9 +5,17 @@ Prints figures; never fails on a time. Target (issue 3): <= 50 us per transition
 """
 import argparse
 import statistics
+import sys
 import time
+from pathlib import Path
 
-from magna_sm.examples import chain, wide_concurrence
+if __name__ == "__main__":  # `python bench/sm_engine.py` from any Python runs in the workspace (bench/README.md)
+    sys.path.append(str(Path(__file__).resolve().parents[1] / "src" / "magna_common" / "src"))
+    from magna_common.workspace_bootstrap import run_script_in_workspace
+
+    run_script_in_workspace(__file__, modules=("magna_sm",))
+
+from magna_sm.examples import chain, wide_concurrence  # noqa: E402
 
 
 def per_transition_us(length: int, repeats: int, observed: bool) -> list[float]:

@@ -8,7 +8,7 @@ paths that cross near the middle. From the recorders' CSVs (one row per control 
   * how much faster than real time the simulation ran while they flew.
 Prints figures; never fails on a time.
 
-    bash scripts/with_env.sh python bench/uav_control_loop.py [--fleets 2 10] [--rate 10]
+    python bench/uav_control_loop.py [--fleets 2 10] [--rate 10]
 """
 from __future__ import annotations
 
@@ -21,7 +21,13 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
+if __name__ == "__main__":  # `python bench/uav_control_loop.py` from any Python runs in the workspace (bench/README.md)
+    sys.path.append(str(Path(__file__).resolve().parents[1] / "src" / "magna_common" / "src"))
+    from magna_common.workspace_bootstrap import run_script_in_workspace
+
+    run_script_in_workspace(__file__, modules=("numpy", "rospy", "magna_master", "magna_uav"))
+
+import numpy as np  # noqa: E402
 
 
 def wait_all(clients, limit: float) -> list:
@@ -104,23 +110,32 @@ def fly_fleet(n: int, rate: float, folder: Path) -> dict:
             "wall_rate": float(np.median(per_uav_sim)) * sim / wall, "fleet_wall_rate": steps_total / wall}
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def build_parser() -> argparse.ArgumentParser:
+    from magna_common.cli_vocabulary import add_deprecated_option
+
+    parser = argparse.ArgumentParser(prog="python bench/uav_control_loop.py", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--fleets", type=int, nargs="+", default=[2, 10], help="fleet sizes (default 2 10)")
     parser.add_argument("--rate", type=float, default=10.0, help="control steps per simulated second (default 10)")
     parser.add_argument("--worker", type=int, help=argparse.SUPPRESS)  # one fleet, in its own process
-    parser.add_argument("--out", help=argparse.SUPPRESS)
-    args = parser.parse_args(argv)
+    parser.add_argument("--worker-output", type=Path, help=argparse.SUPPRESS)  # where that process writes its row
+    add_deprecated_option(parser, "--out", "worker_output", "--worker-output", type=Path)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
     if args.worker:
         with tempfile.TemporaryDirectory(prefix=f"uav_loop_{args.worker}_") as folder:
-            Path(args.out).write_text(json.dumps(fly_fleet(args.worker, args.rate, Path(folder))))
+            args.worker_output.write_text(json.dumps(fly_fleet(args.worker, args.rate, Path(folder))))
         return 0
     rows = []
     for n in args.fleets:
         # rospy allows one node per process: each fleet is flown by a process of its own.
         print(f"flying {n} UAVs ...", flush=True)
         with tempfile.NamedTemporaryFile(suffix=".json") as out:
-            subprocess.run([sys.executable, __file__, "--worker", str(n), "--rate", str(args.rate), "--out", out.name],
+            subprocess.run([sys.executable, __file__, "--worker", str(n), "--rate", str(args.rate),
+                            "--worker-output", out.name],
                            check=True)
             rows.append(json.loads(Path(out.name).read_text()))
     print(f"\nUAV manager control loop (asked: {args.rate:g} steps per simulated second), magna_sim rtf max, "

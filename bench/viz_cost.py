@@ -9,16 +9,23 @@ rtf max, bags on), into a temporary data root:
   (c) `magna replay SIM --headless --speed S --every 2 --gif` once: wall s against the bag's length.
 Prints figures; never fails on a time. About 4 minutes with the defaults.
 
-    bash scripts/with_env.sh python bench/viz_cost.py [--simulations 3] [--rounds 2] [--repeats 3] [--speed 5]
+    python bench/viz_cost.py [--simulations 3] [--rounds 2] [--repeats 3] [--speed 5]
 """
 from __future__ import annotations
 
 import argparse
 import statistics
 import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
+
+if __name__ == "__main__":  # `python bench/viz_cost.py` from any Python runs in the workspace (bench/README.md)
+    sys.path.append(str(Path(__file__).resolve().parents[1] / "src" / "magna_common" / "src"))
+    from magna_common.workspace_bootstrap import run_script_in_workspace
+
+    run_script_in_workspace(__file__)
 
 ROOT = Path(__file__).resolve().parent.parent
 MAGNA = ROOT / "magna"

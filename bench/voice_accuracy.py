@@ -12,7 +12,7 @@ end of an utterance to the ground station receiving the command, on 2 cores.
   microphone. Reported: from the end of speech (including the detector's silence wait) and from the end of
   the utterance as handed over (what a file or push-to-talk gives).
 
-    bash scripts/with_env.sh python bench/voice_accuracy.py [--limit N] [--latency-n 20] [--sets commands held_out]
+    python bench/voice_accuracy.py [--limit N] [--latency-n 20] [--sets commands held_out]
 """
 from __future__ import annotations
 
@@ -24,7 +24,13 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
+if __name__ == "__main__":  # `python bench/voice_accuracy.py` from any Python runs in the workspace (bench/README.md)
+    sys.path.append(str(Path(__file__).resolve().parents[1] / "src" / "magna_common" / "src"))
+    from magna_common.workspace_bootstrap import run_script_in_workspace
+
+    run_script_in_workspace(__file__, modules=("numpy", "pocketsphinx", "magna_master"))
+
+import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))

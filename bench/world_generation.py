@@ -11,7 +11,7 @@ Each figure is the best of --repeats runs (time.perf_counter). Prints one table
 with, for 1 and 2, the time per 10,000 poses (points) and its share of the 1 s
 budget ("well under a second"); never fails on a time.
 
-    bash scripts/with_env.sh python bench/world_generation.py [--repeats 5]
+    python bench/world_generation.py [--repeats 5]
 """
 from __future__ import annotations
 
@@ -19,6 +19,12 @@ import argparse
 import sys
 import time
 from pathlib import Path
+
+if __name__ == "__main__":  # `python bench/world_generation.py` from any Python runs in the workspace (bench/README.md)
+    sys.path.append(str(Path(__file__).resolve().parents[1] / "src" / "magna_common" / "src"))
+    from magna_common.workspace_bootstrap import run_script_in_workspace
+
+    run_script_in_workspace(__file__, modules=("numpy", "magna_worlds"))
 
 ROOT = Path(__file__).resolve().parent.parent
 _DEVEL = ROOT / "devel" / "lib" / "python3" / "dist-packages"

@@ -1,6 +1,17 @@
-"""python -m voice: the voice and keyboard assistant's commands (voice.cli)."""
-import sys
+"""python -m voice: the voice and keyboard assistant's commands (voice.cli), from any Python.
 
-from voice.cli import main
+A Python that is not the workspace's (pyenv's, the system's, the venv's without devel/setup.bash
+sourced) runs the same command again in the workspace's environment first
+(magna_common.workspace_bootstrap); `./magna voice ...` is the same program.
+"""
+import sys
+from pathlib import Path
+
+sys.path.append(str(Path(__file__).resolve().parents[1] / "src" / "magna_common" / "src"))  # standard library only
+from magna_common.workspace_bootstrap import run_module_in_workspace  # noqa: E402
+
+run_module_in_workspace("voice", __file__, modules=("magna_gs", "numpy", "pocketsphinx", "rospy"))
+
+from voice.cli import main  # noqa: E402
 
 sys.exit(main())
