@@ -95,7 +95,7 @@ def export(net: nn.Module, run: RunConfig, prepared: Prepared, path: str | Path,
     if not overwrite:
         for target in (path, spec_file):
             if target.exists():
-                raise FileExistsError(f"{target}: already exists; pass --overwrite to replace it, or choose "
+                raise FileExistsError(f"{target}: already exists; pass --force to replace it, or choose "
                                       "another path")
     path.parent.mkdir(parents=True, exist_ok=True)
     module = wrap(net, prepared)

@@ -1,4 +1,4 @@
-"""Metrics of the batches mlr fly compares (step 4): collision-free rate and time to goal per batch,
+"""Metrics of the batches `magna learn fly` compares (step 4): collision-free rate and time to goal per batch,
 side by side, as Markdown, JSON and a figure."""
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
 """`fly`: a mission flown N times with ORCA-3D and N times with a trained network, compared side by side.
 
-    python -m mlr fly --world Gym/Central_Obstacle_Torus --mission Gym/2UAVs_Crossing_ORCA \\
-        --model runs/best/model.pt --n-iter 20
+    magna learn fly --world Gym/Central_Obstacle_Torus --mission Gym/2UAVs_Crossing_ORCA \\
+        --model ~/magna_data/mlr/runs/crossing_quick/crossing_quick.pt --n-iter 20
 
 Steps (see mlr/README.md, "Flying a trained network"):
 
@@ -32,6 +32,7 @@ import threading
 from dataclasses import dataclass
 from pathlib import Path
 
+from magna_common.cli_vocabulary import add_output, add_rtf, add_search_path
 from mlr.flight_metrics import Comparison, read_batch, write_comparison
 from mlr.nn_mission import VARIANT_SUFFIX, Change, FlyError, mission_roles, nn_variant, write_variant
 
@@ -39,19 +40,20 @@ HELP = "fly a mission with a trained network and with ORCA-3D, N simulations eac
 
 _EPILOG = """\
 Data: DATA_ROOT/Simulations/WORLD/SUBWORLD/MISSION/SUBMISSION/NAME_orca/dataset_1/ (ORCA-3D) and
-.../MISSION/SUBMISSION_nn/NAME_nn/dataset_1/ (network); the comparison goes to OUT (default
+.../MISSION/SUBMISSION_nn/NAME_nn/dataset_1/ (network); the comparison goes to -o/--output DIR (default
 DATA_ROOT/mlr/fly/NAME): comparison.md, comparison.json, comparison.png, and the network's mission
-OUT/missions/MISSION/SUBMISSION_nn.json.
+DIR/missions/MISSION/SUBMISSION_nn.json.
 
 Existing datasets: --append adds N simulations to both, --overwrite rewrites simulations 1..N of both
 (and a different variant file); the comparison covers every simulation of each dataset. --skip-orca
 flies only the network and compares with the ORCA-3D dataset already there.
 
 examples:
-  python -m mlr fly --world Gym/Central_Obstacle_Torus --mission Gym/2UAVs_Crossing_ORCA \\
-      --model ~/magna_data/mlr/runs/best/model.pt --n-iter 20
-  python -m mlr fly --search-path ../shared/ros_magna_corpus --world Gym/1Obs_Central_Cylinder \\
-      --mission Gym/2UAVs_2paths_Central_Cylinder --model best.pt --name cyl --skip-orca
+  magna learn train mlr/configs/crossing_quick.yaml --quiet    # the network flown below (under a minute; reused)
+  magna learn fly --world Gym/Central_Obstacle_Torus --mission Gym/2UAVs_Crossing_ORCA \\
+      --model ~/magna_data/mlr/runs/crossing_quick/crossing_quick.pt --n-iter 1 --name quick --append
+  magna learn fly --world Gym/Central_Obstacle_Torus --mission Gym/2UAVs_Crossing_ORCA \\
+      --model ~/magna_data/mlr/runs/crossing_quick/crossing_quick.pt --n-iter 20 --name crossing   # [long]
 """
 
 
@@ -64,15 +66,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--model", required=True, type=Path, metavar="PATH.pt",
                         help="the TorchScript network (its spec PATH.json beside it), as mlr's export writes it")
     parser.add_argument("--n-iter", type=int, default=20, metavar="N", help="simulations per batch (default: 20)")
-    parser.add_argument("--search-path", action="append", default=[], type=Path, metavar="DIR",
-                        help="also look for worlds and missions here (repeatable; passed on to magna run)")
+    add_search_path(parser, what="worlds and missions (passed on to magna run)")
     parser.add_argument("--name", default="fly",
                         help="the batches are named NAME_orca and NAME_nn (default: %(default)s)")
     parser.add_argument("--data-root", type=Path, default=Path("~/magna_data"), metavar="DIR",
                         help="where Simulations/ goes (default: ~/magna_data)")
-    parser.add_argument("--out", type=Path, default=None, metavar="DIR",
-                        help="where the comparison and the network's mission go (default: DATA_ROOT/mlr/fly/NAME)")
-    parser.add_argument("--rtf", default="max", metavar="max|FACTOR", help="real-time factor (default: max)")
+    add_output(parser, metavar="DIR", old=("--out",),
+               help="where the comparison and the network's mission go (default: DATA_ROOT/mlr/fly/NAME)")
+    add_rtf(parser)
     parser.add_argument("--seed", type=int, default=0, metavar="S",
                         help="base seed of both batches; simulation M uses S+M (default: 0)")
     parser.add_argument("--no-bag", action="store_true", help="do not record a bag per simulation")
@@ -149,7 +150,7 @@ def prepare(args) -> FlyPlan:
               "hover with no network for them", file=sys.stderr)
 
     data_root = args.data_root.expanduser().resolve()
-    out = (args.out.expanduser() if args.out is not None else data_root / "mlr" / "fly" / args.name).resolve()
+    out = (args.output.expanduser() if args.output is not None else data_root / "mlr" / "fly" / args.name).resolve()
     nn_submission = f"{inputs.submission}{VARIANT_SUFFIX}"
     orca_dataset = storage.StorageKey(inputs.world, inputs.subworld, inputs.mission, inputs.submission,
                                       orca_name).dataset_dir(data_root, 1)
@@ -284,7 +285,7 @@ def run(args) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """`python -m mlr.fly`: the subcommand on its own."""
+    """`python -m mlr.fly` (in the workspace's environment): the subcommand on its own."""
     from magna_master.cli import UsageError
 
     parser = argparse.ArgumentParser(prog="fly", description=HELP)

@@ -113,10 +113,10 @@ def run_sweep(sweep: Sweep, out: Path | None = None, overwrite: bool = False, fo
             result_file = out / name / "result.json"
             if result_file.is_file() and _finished(out / name, run) is None:
                 raise FileExistsError(f"{result_file}: a finished run with another config is there; pass "
-                                      "--overwrite to train it again, or give another --out")
+                                      "--force to train it again, or give another -o/--output")
         if export_best and (out / f"{sweep.name}.pt").exists() and _export_is_current(out, sweep, names) is None:
-            raise FileExistsError(f"{out / (sweep.name + '.pt')}: an exported network is there; pass --overwrite "
-                                  "to replace it, or give another --out")
+            raise FileExistsError(f"{out / (sweep.name + '.pt')}: an exported network is there; pass --force "
+                                  "to replace it, or give another -o/--output")
     out.mkdir(parents=True, exist_ok=True)
     data: dict[tuple, tuple] = {}
     counts: dict[str, int] = {}
@@ -150,7 +150,7 @@ def run_sweep(sweep: Sweep, out: Path | None = None, overwrite: bool = False, fo
             results.append(reused)
             continue
         if run_dir.exists():
-            shutil.rmtree(run_dir)  # an interrupted run, or --overwrite
+            shutil.rmtree(run_dir)  # an interrupted run, or --force
         result = train_run(run, prepared, run_dir, name, progress=progress)
         log(f"[{index + 1}/{len(sweep.runs)}] {name}: test accuracy {result.test_accuracy * 100:.2f}%, val "
             f"{result.val_accuracy * 100:.2f}%, {result.steps} steps in {result.wall_seconds / 60:.1f} min "

@@ -1,4 +1,4 @@
-"""The network's mission (mlr fly, step 2): a copy of a mission that sets ORCA-3D, flying a trained
+"""The network's mission (`magna learn fly`, step 2): a copy of a mission that sets ORCA-3D, flying a trained
 network instead. Pure functions on the mission's JSON value, and an atomic writer."""
 from __future__ import annotations
 
@@ -148,7 +148,7 @@ def write_variant(out: Path, mission: str, submission: str, variant: dict, overw
             return path
         if not overwrite:
             raise FlyError(f"{path} exists and differs from this network's mission; nothing was started. Pass "
-                           "--overwrite to replace it, or choose another --out or --name")
+                           "--overwrite to replace it, or choose another -o/--output or --name")
     path.parent.mkdir(parents=True, exist_ok=True)
     atomic_write_text(path, text)
     return path

@@ -1,4 +1,4 @@
-"""`mlr thesis`: reproduce the thesis experiment, end to end.
+"""`magna learn thesis`: reproduce the thesis experiment, end to end.
 
 For each of its two scenarios (four cylinders; central obstacle):
 1. datasets: make sure `--simulations` simulations (80) of the scenario's ROS-MAGNA mission
@@ -6,7 +6,7 @@ For each of its two scenarios (four cylinders; central obstacle):
    `magna run --append`);
 2. train: the thesis architectures (10-10, 30-30, 10-20-10, 20-30-20) and a wider 128-128-128,
    each without and with yaw augmentation (mlr/configs/thesis_<scenario>.yaml), cached and reused
-   like `mlr train`;
+   like `magna learn train`;
 3. fly: the mission flown `--flights` times (20) with the best network and with ORCA-3D, on
    the same seeds (mlr.fly; an ORCA-3D batch flown before is reused);
 then a report (Markdown and a figure) beside the thesis's figures.
@@ -23,8 +23,15 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
+from magna_common.cli_vocabulary import add_force, add_output, add_rtf, add_search_path
+
 HELP = "reproduce the thesis experiment: two datasets of 80 simulations, four architectures, flights vs ORCA-3D"
 DESCRIPTION = __doc__
+EXAMPLES = """\
+examples:
+  magna learn thesis --search-path ../shared/ros_magna_corpus    # days on 2 cores [long]
+  magna learn thesis --search-path ../shared/ros_magna_corpus --only four_cylinders --stages datasets  # [long]
+"""
 CONFIGS = Path(__file__).resolve().parent / "configs"
 STAGES = ("datasets", "train", "fly")
 SERIES = "thesis"
@@ -54,11 +61,10 @@ def _repo() -> Path:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--search-path", action="append", default=[], metavar="DIR",
-                        help="where the ROS-MAGNA Worlds/ and Missions/ are (passed to magna run; repeatable)")
+    add_search_path(parser, what="the scenarios' worlds and missions (passed on to magna run)")
     parser.add_argument("--data-root", default="~/magna_data", help="where Simulations/ goes (default ~/magna_data)")
-    parser.add_argument("--out", type=Path, help="where the experiment's runs and report go "
-                                                 "(default DATA_ROOT/mlr/thesis)")
+    add_output(parser, metavar="DIR", old=("--out",),
+               help="where the experiment's runs and report go (default DATA_ROOT/mlr/thesis)")
     parser.add_argument("--only", choices=[s.key for s in SCENARIOS], action="append",
                         help="run only this scenario (repeatable; default both)")
     parser.add_argument("--stages", default=",".join(STAGES),
@@ -67,9 +73,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--simulations", type=int, default=80, help="simulations per dataset (default 80)")
     parser.add_argument("--flights", type=int, default=20, help="simulations per algorithm when flying (default 20)")
     parser.add_argument("--steps", type=int, help="training steps per architecture (default: the config's)")
-    parser.add_argument("--rtf", default="max", help="simulator real-time factor for datasets and flights")
-    parser.add_argument("--overwrite", action="store_true", help="train and fly again what exists with another "
-                                                                 "config")
+    add_rtf(parser, help="real-time factor of the simulations (datasets and flights): 'max' runs as fast as the "
+                         "machine goes, a number runs that many times real time")
+    add_force(parser, old=("--overwrite",),
+              help="train again what was trained with another config, and fly again what was flown")
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
 
 
@@ -122,20 +129,20 @@ def train(scenario: Scenario, args, out: Path):
     if args.steps:
         overrides["steps"] = args.steps
     sweep = load_sweep(scenario.config, overrides)
-    return run_sweep(sweep, out / scenario.key / "train", overwrite=args.overwrite, progress=not args.quiet)
+    return run_sweep(sweep, out / scenario.key / "train", overwrite=args.force, progress=not args.quiet)
 
 
 def fly(scenario: Scenario, args, out: Path, model: Path) -> None:
     from mlr import fly as fly_module
 
-    if (out / scenario.key / "fly" / "comparison.json").is_file() and not args.overwrite:
-        print(f"{scenario.title}: flown before ({out / scenario.key / 'fly'}); --overwrite flies again",
+    if (out / scenario.key / "fly" / "comparison.json").is_file() and not args.force:
+        print(f"{scenario.title}: flown before ({out / scenario.key / 'fly'}); --force flies again",
               file=sys.stderr)
         return
     parser = argparse.ArgumentParser()
     fly_module.add_arguments(parser)
     argv = ["--world", scenario.world, "--mission", scenario.mission, "--model", str(model), "--n-iter",
-            str(args.flights), "--name", f"{SERIES}_fly", "--data-root", str(args.data_root), "--out",
+            str(args.flights), "--name", f"{SERIES}_fly", "--data-root", str(args.data_root), "--output",
             str(out / scenario.key / "fly"), "--rtf", str(args.rtf),
             "--seed", str(FLIGHT_SEED)]
     for path in args.search_path:
@@ -143,8 +150,8 @@ def fly(scenario: Scenario, args, out: Path, model: Path) -> None:
     orca = _selection(scenario, args, f"{SERIES}_fly_orca").dataset_dirs()[0]
     if len(list(orca.glob("simulation_*"))) >= args.flights:
         argv.append("--skip-orca")  # ORCA-3D flies the same with any network: its batch is reused
-    if args.overwrite:
-        argv.append("--overwrite")
+    if args.force:
+        argv.append("--overwrite")  # fly's dataset policy: rewrite the simulations flown before
     fly_args = parser.parse_args(argv)
     status = fly_module.run(fly_args)
     if status:
@@ -230,7 +237,7 @@ def _figure(bars: list, path: Path) -> None:
 
 def run(args) -> int:
     stages = _stages(args.stages)
-    out = Path(args.out) if args.out else Path(args.data_root).expanduser() / "mlr" / "thesis"
+    out = Path(args.output) if args.output else Path(args.data_root).expanduser() / "mlr" / "thesis"
     scenarios = [s for s in SCENARIOS if not args.only or s.key in args.only]
     for scenario in scenarios:
         if "datasets" in stages:

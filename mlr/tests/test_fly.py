@@ -326,7 +326,7 @@ def start_fly(tmp_path: Path, model: Path, *extra: str, hang: bool = False) -> s
     if hang:
         env["FLY_STUB_HANG"] = "1"
     command = [sys.executable, "-m", "mlr.fly", "--world", WORLD, "--mission", MISSION, "--model", str(model),
-               "--data-root", str(tmp_path / "data"), "--out", str(tmp_path / "out"), "--name", "t", *extra]
+               "--data-root", str(tmp_path / "data"), "-o", str(tmp_path / "out"), "--name", "t", *extra]
     return subprocess.Popen(command, cwd=ROOT, env=env, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
 
@@ -408,7 +408,7 @@ def test_bad_input_starts_nothing(tmp_path, model):
 def test_fly_one_simulation_each_through_magna_run(tmp_path, model):
     data, out = tmp_path / "data", tmp_path / "out"
     command = [sys.executable, "-m", "mlr.fly", "--world", WORLD, "--mission", MISSION, "--model", str(model),
-               "--n-iter", "1", "--rtf", "5", "--no-bag", "--data-root", str(data), "--out", str(out)]
+               "--n-iter", "1", "--rtf", "5", "--no-bag", "--data-root", str(data), "--output", str(out)]
     done = subprocess.run(command, cwd=ROOT, capture_output=True, text=True, stdin=subprocess.DEVNULL,
                           env=dict(os.environ, MAGNA_ROOT=str(ROOT)))
     assert done.returncode == 0, f"{done.stdout}\n{done.stderr}"

@@ -1,5 +1,5 @@
 """The pipeline on a real recorded simulation: the pickler's order and labels against the
-recorder CSV's own columns, then `mlr train` with its cache, reuse and refusals."""
+recorder CSV's own columns, then `magna learn train` with its cache, reuse and refusals."""
 import json
 import os
 import shutil
@@ -123,7 +123,7 @@ def test_train_never_overwrites_another_configs_run_or_an_export(recorded_run, o
     first = run_sweep(load_sweep(config(root, recorded_run)), progress=False, log=lambda m: None)
     exported = first.exported.read_bytes()
     changed = load_sweep(config(root, recorded_run, learning_rate=0.01))
-    with pytest.raises(FileExistsError, match="a finished run with another config is there; pass --overwrite"):
+    with pytest.raises(FileExistsError, match="a finished run with another config is there; pass --force"):
         run_sweep(changed, progress=False, log=lambda m: None)
     assert first.exported.read_bytes() == exported
     again = run_sweep(changed, progress=False, log=lambda m: None, overwrite=True)
@@ -134,10 +134,15 @@ def test_the_command_line_trains_and_refuses_bad_configs_with_status_2(recorded_
     root, _ = own_copy
     path = config(root, recorded_run, hidden_layers=[8])
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
-    done = subprocess.run([sys.executable, "-m", "mlr", "train", str(path), "--quiet", "--out", str(root / "out")],
+    done = subprocess.run([sys.executable, "-m", "mlr", "train", str(path), "--quiet", "-o", str(root / "out")],
                           capture_output=True, text=True, cwd=root, env=env, timeout=600)
     assert done.returncode == 0, done.stderr
     assert "| r00 |" in done.stdout and (root / "out" / "sweep.pt").is_file()
+    # what it suggests next are commands that exist, with this sweep's world and mission filled in
+    assert f"TensorBoard: magna learn board {root / 'out'}" in done.stdout
+    selection = recorded_run.selection()
+    assert (f"fly it: magna learn fly --world {selection.world}/{selection.subworld} --mission "
+            f"{selection.mission}/{selection.submission} --model {root / 'out' / 'sweep.pt'}") in done.stdout
     bad = root / "bad.yaml"
     bad.write_text("world: Gym\nsubworld: X\nmission: Gym\nsubmission: Y\nbatch_size: -4\n")
     done = subprocess.run([sys.executable, "-m", "mlr", "train", str(bad)], capture_output=True, text=True,

@@ -114,7 +114,7 @@ def test_an_export_is_never_written_over_without_overwrite(tmp_path):
     net = build_model(run, 12)
     path = export(net, run, prepared, tmp_path / "net.pt")
     before = path.read_bytes()
-    with pytest.raises(FileExistsError, match="net.pt: already exists; pass --overwrite"):
+    with pytest.raises(FileExistsError, match="net.pt: already exists; pass --force"):
         export(build_model(run, 12), run, prepared, path)
     assert path.read_bytes() == before
     export(build_model(run, 12), run, prepared, path, overwrite=True)
