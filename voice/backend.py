@@ -54,7 +54,8 @@ def to_request_fields(command: Command) -> dict:
 class GroundStationClient:
     """Calls /magna/gs/command; one per process."""
 
-    def __init__(self, service: str = SERVICE, node_name: str = "magna_voice"):
+    def __init__(self, service: str = SERVICE, node_name: str = "magna_voice", master_wait: float = 0.0):
+        """master_wait: seconds to wait for a ROS master that is not up yet (a mission still starting)."""
         import rospy
         from magna_msgs.msg import NamedValue
         from magna_msgs.srv import GroundStationCommand
@@ -64,6 +65,9 @@ class GroundStationClient:
         if not rospy.core.is_initialized():
             import rosgraph
 
+            deadline = time.monotonic() + master_wait
+            while not rosgraph.is_master_online() and time.monotonic() < deadline:
+                time.sleep(0.2)  # roslaunch starts the master a few seconds after it is started
             if not rosgraph.is_master_online():  # else init_node would wait for a master forever
                 raise BackendError(f"no ROS master at {rosgraph.get_master_uri()}: start the mission (roslaunch "
                                    "magna_gs simulation.launch mission_file:=...) or set ROS_MASTER_URI; "
@@ -85,6 +89,22 @@ class GroundStationClient:
             return sorted(int(i) for i in self._rospy.get_param("/ual_ids", []))
         except (TypeError, ValueError, self._rospy.ROSException):
             return []
+
+    def wait_for_uavs(self, timeout: float) -> list[int]:
+        """The UAVs in /ual_ids once the ground station knows where each one is ([] if none within `timeout` s).
+
+        A mission that has just started is still spawning its UAVs: the ground station would refuse a
+        command for a UAV whose pose it has not heard yet. Asking it where they all are is the check.
+        """
+        deadline = time.monotonic() + timeout
+        where = Command("parameters", "get", "all", [Parameter("position", 0.0, "", "")])
+        while True:
+            ids = self.uav_ids()
+            if ids and self.send(where).accepted:
+                return ids
+            if time.monotonic() >= deadline:
+                return ids
+            time.sleep(0.2)
 
     def send(self, command: Command) -> Reply:
         values = [self._named_value(p.name, p.number, p.text, p.unit) for p in command.parameters]

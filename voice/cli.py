@@ -1,5 +1,7 @@
 """`magna voice` and `python -m voice`: command a running mission by voice or keyboard.
 
+The same program as `rosrun magna_master voice`; examples in voice/README.md.
+
     magna voice [--keyboard | --mic | --audio FILE...]   the assistant (keyboard by default)
     magna voice parse "SENTENCE" ...                     one JSON line per sentence: entities, command or question
     magna voice transcribe FILE.wav ...                  the transcript and the same JSON
@@ -10,6 +12,8 @@ import argparse
 import json
 import sys
 from pathlib import Path
+
+from magna_common.cli_vocabulary import add_output
 
 HELP = "command a running mission by voice or keyboard, offline: assistant, parse, transcribe"
 PROMPT = "magna voice> "
@@ -97,10 +101,15 @@ def _assistant(args, ids, recognizer=None):
         return Assistant(None, ids, say, recognizer)
     from voice.backend import GroundStationClient
 
-    client = GroundStationClient(args.service)
     print(f"waiting for the ground station ({args.service}) ...", file=sys.stderr)
+    client = GroundStationClient(args.service, master_wait=args.wait)  # the mission may still be starting
     client.wait(args.wait)
-    ids = ids or client.uav_ids()
+    if not ids:  # the UAVs the mission flies; it may still be spawning them
+        print("waiting for the mission's UAVs (/ual_ids) ...", file=sys.stderr)
+        ids = client.wait_for_uavs(args.wait)
+        if not ids:
+            print(f"no UAVs in /ual_ids after {args.wait:g} s: questions will not offer UAV ids (--uavs gives "
+                  "them)", file=sys.stderr)
     return Assistant(client.send, ids, say, recognizer)
 
 
@@ -156,7 +165,7 @@ def _listen(args, assistant) -> int:
     from voice.assistant import render
     from voice.audio import VoiceActivityDetector, listen, microphone_chunks
 
-    out_dir = Path(args.utterances)
+    out_dir = Path(args.output)
     out_dir.mkdir(parents=True, exist_ok=True)
     detector = VoiceActivityDetector(silence_seconds=args.silence)
     print(f"listening (utterances saved in {out_dir}); Ctrl-C ends", file=sys.stderr)
@@ -166,13 +175,23 @@ def _listen(args, assistant) -> int:
     return 0
 
 
+MISSION_LAUNCH = ("roslaunch magna_gs simulation.launch mission_file:=$PWD/missions/Gym/Operator_Control.json \\\n"
+                  "      world:=Gym subworld:=Central_Obstacle_Torus rtf:=1.0")
+
+EXAMPLES = f"""\
+examples:
+  magna voice parse "drone two, go up five meters" "land"    # one JSON line per sentence; no ROS needed
+  magna voice --dry-run --uavs 1,2    # type commands: understood and printed, nothing sent [background]
+  {MISSION_LAUNCH}    # a mission waiting for the operator (with devel/setup.bash sourced) [background]
+  magna voice    # type commands to it; 'quit' or Ctrl-D ends
+  magna voice --mic --speak    # speak them; questions and answers are spoken back [microphone]
+  magna voice transcribe FILE.wav    # e.g. a WAV made by espeak-ng -w FILE.wav "drone one land" [synopsis]
+"""
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
-    parser.epilog = ("examples:\n"
-                     "  magna voice                                   type commands to the running mission\n"
-                     "  magna voice --mic --speak                     speak them; answers spoken back\n"
-                     "  magna voice parse \"drone two, go up five meters\"\n"
-                     "  magna voice transcribe command.wav")
+    parser.epilog = EXAMPLES
     source = parser.add_mutually_exclusive_group()
     source.add_argument("--keyboard", action="store_true", help="type sentences (the default)")
     source.add_argument("--mic", action="store_true", help="listen to the microphone (voice-activity detection)")
@@ -183,22 +202,33 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--dry-run", action="store_true", help="understand and print, send nothing (no ROS needed)")
     parser.add_argument("--uavs", metavar="IDS", help="UAV ids, e.g. 1,2,3 (default: the ids in /ual_ids)")
     parser.add_argument("--service", default="/magna/gs/command", help="the ground station's command service")
-    parser.add_argument("--wait", type=float, default=30.0, metavar="S", help="seconds to wait for the service")
+    parser.add_argument("--wait", type=float, default=30.0, metavar="S",
+                        help="seconds to wait for each of: the ROS master, the ground station's service and "
+                             "(without --uavs) the mission's UAVs (default %(default)g)")
     parser.add_argument("--device", default=None, help="microphone: a sounddevice input device (index or name)")
     parser.add_argument("--silence", type=float, default=0.8, metavar="S",
                         help="microphone: seconds of silence that end an utterance")
-    parser.add_argument("--utterances", default="voice_utterances", metavar="DIR",
-                        help="microphone: where each utterance is saved as a WAV")
+    add_output(parser, metavar="DIR", default=Path("voice_utterances"), old=("--utterances",),
+               help="microphone: the folder each utterance is saved to as a WAV, numbered after the files there "
+                    "(default: voice_utterances)")
     parser.set_defaults(_voice=cmd_assistant)
     sub = parser.add_subparsers(dest="voice_command", metavar="{parse,transcribe}")
     parse_p = sub.add_parser("parse", help="print the entities and the command (or question) of each sentence",
                              description="One JSON line per sentence: entities with confidences, and the "
-                                         "ground-station command it maps to or the question it would ask back.")
+                                         "ground-station command it maps to or the question it would ask back.",
+                             formatter_class=argparse.RawDescriptionHelpFormatter,
+                             epilog="examples:\n"
+                                    "  magna voice parse \"drone two, go up five meters\" \"land\"\n"
+                                    "  magna voice parse \"land now\" --uavs 1,2    # a question: which UAV?\n")
     parse_p.add_argument("sentences", nargs="*", help="sentences; - reads one per line from standard input")
     parse_p.add_argument("--uavs", metavar="IDS", help="UAV ids the questions offer, e.g. 1,2,3")
     parse_p.set_defaults(_voice=cmd_parse)
     trans = sub.add_parser("transcribe", help="transcribe WAV files and print the transcript and the same JSON",
-                           description="Speech to text (offline by default), then the same JSON as parse.")
+                           description="Speech to text (offline by default), then the same JSON as parse.",
+                           formatter_class=argparse.RawDescriptionHelpFormatter,
+                           epilog="examples:\n"
+                                  "  magna voice transcribe FILE.wav    # voice/README.md makes one with espeak-ng "
+                                  "[synopsis]\n")
     trans.add_argument("files", nargs="+", metavar="FILE.wav")
     trans.add_argument("--online", action="store_true", help="Google's online recogniser (needs internet)")
     trans.add_argument("--uavs", metavar="IDS", help="UAV ids the speech model expects (default 1..9)")
@@ -221,6 +251,6 @@ def run(args) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m voice", description=HELP)
+    parser = argparse.ArgumentParser(prog="python -m voice", description=HELP)  # `magna voice` is the same
     add_arguments(parser)
     return run(parser.parse_args(argv))
