@@ -13,7 +13,7 @@ import time
 from pathlib import Path
 
 from magna_sm.container import Container, ContainerEvent, ContainerStructure
-from magna_sm.draw import render, to_dot
+from magna_sm.draw import draw_structures
 
 DEFAULT_NAMESPACE = "/magna/sm"
 
@@ -156,7 +156,7 @@ class MachineView:
                     for path, msg in self._structures.items()]
 
     def render(self, output: Path, title: str = "") -> Path:
-        return render(to_dot(self.structures(), self.active_paths(), title), output)
+        return draw_structures(self.structures(), output, self.active_paths(), title)
 
 
 def run_viewer(server: str, output: Path, namespace: str = DEFAULT_NAMESPACE, min_period: float = 0.5,
