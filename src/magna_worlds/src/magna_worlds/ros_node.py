@@ -57,7 +57,8 @@ Private parameters (defaults):
   ~record ("")              file the resolved world (every pose and obstacle) is written to
 
 Parameters set: /magna/world/origin_geo [lat, lon, alt] and /magna/world/boundaries
-[[xmin, xmax], [ymin, ymax], [zmin, zmax]] of the last part that has them.
+[[xmin, xmax], [ymin, ymax], [zmin, zmax]] of the last part that has them. The node owns
+/magna/world: it deletes what an earlier world node left there when it starts.
 
 Example: rosrun magna_worlds world _world:=Gym _subworld:=Four_Cylinders _seed:=1
 """
@@ -66,8 +67,15 @@ SPAWN_SERVICE = "/magna/sim/spawn_model"
 DELETE_SERVICE = "/magna/sim/delete_model"
 
 
+WORLD_PARAMS = "/magna/world"  # what the node tells others: origin_geo, boundaries
+
+
 class WorldNode:
     def __init__(self):
+        # An earlier run's world (on the same master) must not stand in for this one's: a default
+        # box of ours would never replace its boundaries.
+        if rospy.has_param(WORLD_PARAMS):
+            rospy.delete_param(WORLD_PARAMS)
         hyper = rospy.get_param("/magna/hyperparameters", {}) or {}
         seed = int(rospy.get_param("~seed", hyper.get("seed", 0) or 0))
         extra = [Path(p) for p in rospy.get_param("~worlds_path", [])]
@@ -147,11 +155,11 @@ class WorldNode:
     def _after_add(self, part_id: str) -> str:
         part = self.registry.parts[part_id]
         if part.world.origin_geo:  # for nodes that convert to and from WGS84 (go_to_waypoint_geo, real UAVs)
-            rospy.set_param("/magna/world/origin_geo", list(part.world.origin_geo))
+            rospy.set_param(f"{WORLD_PARAMS}/origin_geo", list(part.world.origin_geo))
         # A box MAGNA made up for a file without world_boundaries never replaces one that a file gave.
         if np.isfinite(part.world.boundaries).all() and not (part.world.boundaries_defaulted
-                                                             and rospy.has_param("/magna/world/boundaries")):
-            rospy.set_param("/magna/world/boundaries", part.world.boundaries.tolist())
+                                                             and rospy.has_param(f"{WORLD_PARAMS}/boundaries")):
+            rospy.set_param(f"{WORLD_PARAMS}/boundaries", part.world.boundaries.tolist())
         for warning in part.warnings:
             rospy.logwarn("world part %r: %s", part_id, warning)
         self._publish()
