@@ -7,7 +7,9 @@ from __future__ import annotations
 import os
 import signal
 import subprocess
+import threading
 import xmlrpc.client
+from pathlib import Path
 
 
 class TimeoutTransport(xmlrpc.client.Transport):
@@ -46,3 +48,40 @@ def end_process_group(process: subprocess.Popen, grace: float = 5.0) -> None:
         pass
     if process.poll() is None:
         process.wait(timeout=grace)
+
+
+def parent_roslaunch() -> int | None:
+    """The pid of the roslaunch that started this process as one of its nodes, or None."""
+    parent = os.getppid()
+    try:
+        words = Path(f"/proc/{parent}/cmdline").read_bytes().split(b"\0")
+    except OSError:
+        return None
+    # `roslaunch ...`, or `python3 /usr/bin/roslaunch ...`: the script is the first or second word
+    return parent if any(os.path.basename(os.fsdecode(word)) == "roslaunch" for word in words[:2]) else None
+
+
+def end_parent_launch(timeout: float = 20.0) -> bool:
+    """End the roslaunch that started this node as Ctrl-C does, and wait until it stops us.
+
+    roslaunch reports a `required` node that exits, even with status 0, in red ("REQUIRED
+    process [...] has died!") and shuts the launch down. A required node that has finished its
+    work normally calls this instead of just returning: the launch ends quietly, as at Ctrl-C,
+    while a crash, an error status or a kill is still reported in red. Call it from the main
+    thread. False when no roslaunch started this process (`rosrun`, a test) or when it did not
+    stop us within `timeout` seconds (the node then exits and roslaunch reports it).
+    """
+    launch = parent_roslaunch()
+    if launch is None:
+        return False
+    stopped = threading.Event()
+    signals = (signal.SIGINT, signal.SIGTERM)
+    previous = {sig: signal.signal(sig, lambda *_: stopped.set()) for sig in signals}
+    try:
+        os.kill(launch, signal.SIGINT)
+        return stopped.wait(timeout)
+    except ProcessLookupError:  # it ended meanwhile
+        return False
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)

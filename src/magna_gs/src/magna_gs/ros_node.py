@@ -44,7 +44,7 @@ from magna_gs.commands import CommandPlan, CommandRefused, Param, UavStatus, pla
 from magna_gs.factory import ActionClients, RosStateFactory, wait_sim_seconds, world_poses
 from magna_gs.mission.build import build_machine
 from magna_gs.mission.loader import MissionError, load_mission
-from magna_gs.processes import end_process_group
+from magna_gs.processes import end_parent_launch, end_process_group
 from magna_gs.sim_pause import SimulationPause
 from magna_gs.utm import choose_plan, mission_uses_utm
 from magna_gs.utm_client import UtmLink
@@ -81,6 +81,14 @@ Private parameters (defaults):
 
 SUCCESS_OUTCOMES = ("completed", "succeeded", "success", "mission_completed", "finished")
 BAG_WAIT = 15.0  # wall seconds for the bag to connect to the UAVs' topics
+
+
+def clear_private_params(node_name: str) -> None:
+    """Delete the private parameters of a node we are about to start (as roslaunch's clear_params does):
+    what an earlier run gave it on this master (a manager's ~data_dir, ...) must not reach this run's."""
+    namespace = "/" + node_name.strip("/")
+    if rospy.has_param(namespace):
+        rospy.delete_param(namespace)
 
 
 class GroundStationServices:
@@ -228,6 +236,7 @@ class GroundStationServices:
                           f"their first messages")
 
     def _start_manager(self, uav_id: int) -> None:
+        clear_private_params(f"uav_{uav_id}_manager")
         command = ["rosrun", "magna_uav", "uav_manager", f"__name:=uav_{uav_id}_manager", f"_id:={uav_id}",
                    f"_mission_file:={self.mission_file}", f"_control_rate:={self.control_rate}"]
         if self.data_dir:
@@ -239,6 +248,7 @@ class GroundStationServices:
     def start_utm(self, plan_file: str) -> None:
         """The UTM node for this mission, and the link that hears its plans."""
         self.utm = UtmLink([c.id for c in self.mission.agents])
+        clear_private_params("utm")
         command = ["rosrun", "magna_gs", "utm", "__name:=utm", f"_mission_file:={self.mission_file}",
                    f"_plan_file:={plan_file}"]
         quiet = {} if self.manager_output == "screen" else {"stdout": subprocess.DEVNULL,
@@ -520,4 +530,9 @@ def main(argv=None) -> int:
     except (MissionError, ValueError) as error:
         rospy.logfatal(str(error))
         return 2
-    return station.run()
+    status = station.run()
+    if status == 0:
+        # simulation.launch requires this node; ending normally, it ends the launch as Ctrl-C does, without
+        # roslaunch's red "REQUIRED process has died" (kept for crashes and errors)
+        end_parent_launch()
+    return status
