@@ -144,3 +144,10 @@ def test_a_node_the_ground_station_starts_gets_no_parameters_of_an_earlier_run(r
     clear_private_params("uav_7_manager")
     assert not rospy_node.has_param("/uav_7_manager")
     clear_private_params("uav_7_manager")  # nothing there: nothing to do
+
+
+def test_a_node_not_started_by_roslaunch_does_not_end_anything():
+    from magna_gs.processes import end_parent_launch, parent_roslaunch
+
+    assert parent_roslaunch() is None  # pytest's parent is a shell
+    assert end_parent_launch(timeout=0.1) is False

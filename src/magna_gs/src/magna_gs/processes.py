@@ -57,8 +57,8 @@ def parent_roslaunch() -> int | None:
         words = Path(f"/proc/{parent}/cmdline").read_bytes().split(b"\0")
     except OSError:
         return None
-    # `roslaunch ...`, or `python3 /usr/bin/roslaunch ...`: the script is the first or second word
-    return parent if any(os.path.basename(os.fsdecode(word)) == "roslaunch" for word in words[:2]) else None
+    # `roslaunch ...`, `python3 /usr/bin/roslaunch ...` or `python3 -m roslaunch ...`
+    return parent if any(os.path.basename(os.fsdecode(word)) == "roslaunch" for word in words[:3]) else None
 
 
 def end_parent_launch(timeout: float = 20.0) -> bool:
