@@ -18,13 +18,14 @@ def ancestors(pid: int) -> set[int]:
     return chain
 
 
-def carrying(token: bytes) -> list[tuple[int, str]]:
+def carrying(token: bytes, variable: bytes = b"MAGNA_TEST_RUN") -> list[tuple[int, str]]:
+    """(pid, command line) of every live process whose environment has variable=token."""
     found = []
     for entry in Path("/proc").iterdir():
         if not entry.name.isdigit():
             continue
         try:
-            if b"MAGNA_TEST_RUN=" + token not in (entry / "environ").read_bytes().split(b"\0"):
+            if variable + b"=" + token not in (entry / "environ").read_bytes().split(b"\0"):
                 continue
             if "State:\tZ" in (entry / "status").read_text():
                 continue  # already dead, waiting for its parent to reap it

@@ -24,6 +24,7 @@ import shutil
 import signal
 import subprocess
 import time
+import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -40,6 +41,7 @@ EXAMPLE_STARTS = ("magna ", "./magna ", "rosrun ", "roslaunch ", "rosservice ", 
 SHELL_STATE_COMMANDS = ("source ", ". ", "cd ", "export ")
 COMMAND_TIMEOUT = 420.0  # s per example: the bounded time an example may take here
 STOP_GRACE = 15.0  # s a background example gets to end after Ctrl-C
+BLOCK_TOKEN = "MAGNA_DOCS_BLOCK"
 DIED = "has died"  # roslaunch's words for a node that ended by itself
 
 
@@ -279,7 +281,9 @@ def run_block(block: Block, env: dict[str, str], work: Path, root: Path = ROOT,
     work.mkdir(parents=True, exist_ok=True)
     # Job control: each background example is a process group of its own (stopped as a whole) and
     # keeps Ctrl-C (without it bash makes background jobs ignore SIGINT).
-    script = ["set +e -m\n", f"cd {shlex.quote(str(root))}\n"]
+    # Every process of the block carries its token, so one an example leaves behind is found.
+    token = uuid.uuid4().hex
+    script = ["set +e -m\n", f"export {BLOCK_TOKEN}={token}\n", f"cd {shlex.quote(str(root))}\n"]
     if block.sourced:
         script.append(f"source {shlex.quote(str(root / 'devel' / 'setup.bash'))}\n")
     runnable = [(index, example) for index, example in enumerate(block.examples) if example.runs_here]
@@ -296,7 +300,27 @@ def run_block(block: Block, env: dict[str, str], work: Path, root: Path = ROOT,
                        timeout=timeout * max(1, len(runnable)) + 60, check=False)
     finally:
         _stop_background(work / "background")
-    return [_outcome(example, index, work) for index, example in enumerate(block.examples)]
+        left = _end_leftovers(token)
+    outcomes = [_outcome(example, index, work) for index, example in enumerate(block.examples)]
+    if left:
+        last = next((o for o in reversed(outcomes) if o.returncode is not None), None)
+        if last is not None:  # the block's processes outlived it: blame the block's last run example
+            last.status = "failed"
+            last.output += "\n(processes left running after the block, now ended: " + "; ".join(left) + ")"
+    return outcomes
+
+
+def _end_leftovers(token: str) -> list[str]:
+    """End, and name, the processes of a block still alive after its background examples were stopped."""
+    from scripts.leftover_processes import carrying
+
+    left = carrying(token.encode(), BLOCK_TOKEN.encode())
+    for pid, _ in left:
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+    return [command[:120] for _, command in left]
 
 
 def _stop_background(pid_file: Path) -> None:

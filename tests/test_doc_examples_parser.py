@@ -62,3 +62,11 @@ def test_the_newcomer_has_nothing_of_the_workspace_sourced(tmp_path):
     assert not any(entry.startswith(root) for entry in env["PATH"].split(":"))
     assert "ROS_PACKAGE_PATH" not in env and "PYTHONPATH" not in env
     assert env["HOME"] == str(tmp_path) and env["ROS_MASTER_URI"] == "http://localhost:12345"
+
+
+def test_a_process_an_example_leaves_behind_is_ended_and_reported(tmp_path):
+    # `&` inside an example orphans the sleep when its shell ends: the block must not leave it running.
+    block = doc_examples.Block("b", [doc_examples.Example("s:1", "sleep 600 & echo started")])
+    env = doc_examples.user_environment(tmp_path / "home", free_port())
+    (outcome,) = doc_examples.run_block(block, env, tmp_path / "work", timeout=60)
+    assert outcome.status == "failed" and "sleep 600" in outcome.output
