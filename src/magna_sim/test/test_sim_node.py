@@ -168,3 +168,26 @@ def test_pause_stops_simulated_time_but_not_spawning_or_the_ual_topics(fresh_ros
     # paused: the clock stands, poses come with the frozen time, a UAV spawns; resumed: it runs (rtf 5)
     assert out.stdout.split() == ["True", "True", "True", "4.0", "True", "True", "True", "True"], out.stderr
     assert node.poll() is None
+
+
+def test_ids_left_in_ual_ids_by_a_killed_sim_do_not_stop_the_next_one(fresh_ros_master):
+    import rosgraph
+
+    # A simulator killed with SIGKILL leaves its ids in /ual_ids with no server behind them.
+    fresh_ros_master.spawn(["rosparam", "set", "/ual_ids", "[1, 2]"]).wait(timeout=30)
+    node = fresh_ros_master.spawn(["rosrun", "magna_sim", "sim", "_uavs:=2", "_real_time_factor:=5"],
+                                  stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    ros = rosgraph.Master("/test", master_uri=fresh_ros_master.uri)
+
+    def served_or_ended():
+        if node.poll() is not None:
+            return True
+        try:
+            ros.lookupService("/uav_2/ual/take_off")
+        except rosgraph.MasterError:
+            return False
+        return True
+
+    wait_until(served_or_ended, "UAV 2's UAL served, or the sim ended", timeout=60)
+    assert node.poll() is None, node.communicate()[0][-2000:]
+    assert sorted(ros.getParam("/ual_ids")) == [1, 2]

@@ -193,6 +193,12 @@ def _own_the_clock() -> Callable[[rospy.Time], None] | None:
     return _set_rostime
 
 
+def _ual_served(uav_id: int) -> bool:
+    """Whether some node serves the UAL of `uav_id` now (its take_off service is registered)."""
+    code, _, _ = rospy.get_master().lookupService(f"/uav_{uav_id}/ual/take_off")
+    return code == 1  # the master answers -1 when no node provides it
+
+
 def initial_positions(count: int, spacing: float) -> list[np.ndarray]:
     """UAVs 1..N on a line along y, centred on the origin."""
     return [np.array([0.0, (i - (count - 1) / 2.0) * spacing, 0.0]) for i in range(count)]
@@ -240,7 +246,11 @@ class SimNode:
     def spawn_uav(self, name, uav_id, airframe, flight_model, position, yaw, rgba=(0.2, 0.2, 0.25, 1.0)):
         ids = list(rospy.get_param("/ual_ids", []))
         if uav_id in ids and uav_id not in self.servers:
-            raise SpawnError(f"uav_id: {uav_id} is already in /ual_ids (another UAL server has it); pick a free id")
+            if _ual_served(uav_id):
+                raise SpawnError(f"uav_id: {uav_id} is already in /ual_ids (another UAL server has it); pick a free id")
+            # Listed by a UAL server that ended without cleaning up (killed): nobody serves it, take it over.
+            rospy.logwarn(f"magna_sim: /ual_ids lists {uav_id} but no UAL server serves it (one was killed?); "
+                          "taking it over")
         if uav_id < 1:
             raise SpawnError(f"uav_id: {uav_id} must be 1 or more (UAL namespaces are /uav_{{id}})")
         vehicle = self.world.spawn_uav(name, uav_id, airframe, flight_model, position, yaw, rgba)
