@@ -8,6 +8,18 @@ ROOT = Path(__file__).resolve().parents[1]
 # The real ROS-MAGNA files, read in place (never copied into the project): ../shared/ros_magna_corpus.
 CORPUS = Path(os.environ.get("MAGNA_CORPUS", ROOT.parent / "shared" / "ros_magna_corpus"))
 
+# The smallest mission a simulation runs: add the world of the hyperparameters, end.
+WORLD_ONLY = {
+    "Agents_Config": [{"ID": 1, "model": "iris", "mode": "sitl", "marker_color": [255, 0, 0, 0.5]}],
+    "State_Machine": [
+        {"type": "CBState", "state_type": "world_config", "name": "new_world",
+         "parameters": {"action": "spawn", "id": 1}, "outcomes": {"completed": "add_world"}},
+        {"type": "CBState", "state_type": "world_config", "name": "add_world",
+         "parameters": {"action": "add", "world_part_def": "from_hyperparameters"},
+         "outcomes": {"completed": "completed"}},
+    ],
+}
+
 WAIT = 10.0  # s: a guard against hangs, never a performance expectation
 
 

@@ -16,21 +16,10 @@ from pathlib import Path
 import pytest
 import yaml
 
-from tests.support import ROOT
+from tests.support import ROOT, WORLD_ONLY
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(400)]
 
-# The smallest mission that needs the world node: add the world of the hyperparameters, end.
-WORLD_ONLY = {
-    "Agents_Config": [{"ID": 1, "model": "iris", "mode": "sitl", "marker_color": [255, 0, 0, 0.5]}],
-    "State_Machine": [
-        {"type": "CBState", "state_type": "world_config", "name": "new_world",
-         "parameters": {"action": "spawn", "id": 1}, "outcomes": {"completed": "add_world"}},
-        {"type": "CBState", "state_type": "world_config", "name": "add_world",
-         "parameters": {"action": "add", "world_part_def": "from_hyperparameters"},
-         "outcomes": {"completed": "completed"}},
-    ],
-}
 TAKE_OFF_CELL = "definition: ['Ground_Station', 'Agents_take_off', 'matrix', '[1,0,0]']"
 DEATH = "has died"
 

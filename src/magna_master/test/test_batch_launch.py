@@ -5,21 +5,10 @@ import subprocess
 
 import pytest
 
-from tests.support import ROOT
+from tests.support import ROOT, WORLD_ONLY
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(400)]
 
-# The smallest mission a simulation runs: add the world of the hyperparameters, end.
-WORLD_ONLY = {
-    "Agents_Config": [{"ID": 1, "model": "iris", "mode": "sitl", "marker_color": [255, 0, 0, 0.5]}],
-    "State_Machine": [
-        {"type": "CBState", "state_type": "world_config", "name": "new_world",
-         "parameters": {"action": "spawn", "id": 1}, "outcomes": {"completed": "add_world"}},
-        {"type": "CBState", "state_type": "world_config", "name": "add_world",
-         "parameters": {"action": "add", "world_part_def": "from_hyperparameters"},
-         "outcomes": {"completed": "completed"}},
-    ],
-}
 
 
 def batch_launch(master, tmp_path, mission: str) -> tuple[int, str]:
