@@ -188,8 +188,8 @@ def readmes(root: Path = ROOT) -> list[Path]:
     found = [root / "README.md"]
     for pattern in ("src/*/README.md", "*/README.md"):
         for path in sorted(root.glob(pattern)):
-            if path not in found and not any(part in {"build", "devel", "install", "logs", ".venv"}
-                                             for part in path.relative_to(root).parts):
+            if path not in found and not any(part in {"build", "devel", "install", "logs"} or part.startswith(".")
+                                             for part in path.relative_to(root).parts):  # .venv, .pytest_cache
                 found.append(path)
     return found
 

@@ -70,3 +70,12 @@ def test_a_process_an_example_leaves_behind_is_ended_and_reported(tmp_path):
     env = doc_examples.user_environment(tmp_path / "home", free_port())
     (outcome,) = doc_examples.run_block(block, env, tmp_path / "work", timeout=60)
     assert outcome.status == "failed" and "sleep 600" in outcome.output
+
+
+def test_the_readmes_are_the_projects_own(tmp_path):
+    for folder in ("src/pkg", "mlr", ".pytest_cache", "build/pkg", ".venv/lib"):
+        (tmp_path / folder).mkdir(parents=True)
+        (tmp_path / folder / "README.md").write_text("x\n")
+    (tmp_path / "README.md").write_text("x\n")
+    found = [path.relative_to(tmp_path).as_posix() for path in doc_examples.readmes(tmp_path)]
+    assert found == ["README.md", "src/pkg/README.md", "mlr/README.md"]
