@@ -36,7 +36,8 @@ NOT_RUN_MARKS = ("display", "microphone", "hardware", "long", "fresh clone", "sy
 RUN_MARKS = ("background",)
 MARKS = NOT_RUN_MARKS + RUN_MARKS
 SHELL_LANGUAGES = {"sh", "bash", "shell", "console"}
-EXAMPLE_STARTS = ("magna ", "./magna ", "rosrun ", "roslaunch ", "rosservice ", "rostopic ", "make ", "python ", "python3 ")
+EXAMPLE_STARTS = ("magna ", "./magna ", "rosrun ", "roslaunch ", "rosservice ", "rostopic ", "make ",
+                  "python ", "python3 ")
 # Commands that change the shell a user types in, so they run in it rather than in a child.
 SHELL_STATE_COMMANDS = ("source ", ". ", "cd ", "export ")
 COMMAND_TIMEOUT = 420.0  # s per example: the bounded time an example may take here
