@@ -7,7 +7,9 @@ root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$root"
 
 results=build/magna_test_results
-rm -rf "$results" build/*/test_results
+if [ "${1:-}" != "--lint-only" ]; then  # lint writes no results: it keeps the last test run's
+  rm -rf "$results" build/*/test_results
+fi
 mkdir -p "$results"
 failed_steps=()
 step() {  # name, command...
