@@ -1,1 +1,1 @@
-"""The UAL over MAVLink (in progress): frame conventions between ROS and MAVLink so far."""
+"""The UAL over MAVLink (in progress): frames, autopilot modes and the UAL state they give."""
