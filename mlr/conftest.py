@@ -1,16 +1,6 @@
-"""mlr's tests run in the workspace's environment: `scripts/with_env.sh python -m pytest mlr`.
-
-With another Python (pyenv's, the system's) they would fail one by one on imports; say so once.
-"""
-import importlib.util
-
-import pytest
-
-NEEDED = ("numpy", "torch", "rospy", "magna_uav", "magna_master")
+"""mlr's tests run in the workspace's environment: `scripts/with_env.sh python -m pytest mlr`."""
+from tests.support import exit_unless_in_workspace
 
 
 def pytest_configure(config):
-    missing = [name for name in NEEDED if importlib.util.find_spec(name) is None]
-    if missing:
-        pytest.exit(f"mlr's tests need the workspace's environment (this Python cannot import "
-                    f"{', '.join(missing)}): run them as scripts/with_env.sh python -m pytest mlr", returncode=2)
+    exit_unless_in_workspace("mlr", ("numpy", "torch", "rospy", "magna_uav", "magna_master"))

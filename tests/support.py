@@ -1,4 +1,5 @@
 """Helpers shared by tests of several packages (importable as tests.support)."""
+import importlib.util
 import os
 import re
 import time
@@ -45,3 +46,15 @@ def ros_nodes(root: Path = ROOT) -> list[tuple[str, str]]:
             found |= {(package.name, os.path.basename(program)) for program in programs.split()}
         found |= {(package.name, name) for name in re.findall(r"install\(TARGETS\s+(\w+)\s+RUNTIME", text)}
     return sorted(found)
+
+
+def exit_unless_in_workspace(package: str, needed: tuple[str, ...]) -> None:
+    """From a package's conftest: with a Python outside the workspace (pyenv's, the system's) its tests
+    would fail one by one on imports; say so once, with the command that works."""
+    import pytest
+
+    missing = [name for name in needed if importlib.util.find_spec(name) is None]
+    if missing:
+        pytest.exit(f"{package}'s tests need the workspace's environment (this Python cannot import "
+                    f"{', '.join(missing)}): run them as scripts/with_env.sh python -m pytest {package}",
+                    returncode=2)

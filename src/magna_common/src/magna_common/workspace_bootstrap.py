@@ -47,13 +47,15 @@ class WorkspaceNotReady(SystemExit):
         self.message = message
 
 
+def is_checkout(folder: Path) -> bool:
+    """`folder` is the root of a MAGNA checkout: it holds the `magna` script and src/magna_master."""
+    return (folder / "magna").is_file() and (folder / "src" / "magna_master").is_dir()
+
+
 def find_root(start: str | os.PathLike) -> Path | None:
-    """The MAGNA checkout holding `start` (the folder with the `magna` script and src/magna_master)."""
+    """The MAGNA checkout holding `start`."""
     here = Path(start).resolve()
-    for folder in [here, *here.parents]:
-        if (folder / "magna").is_file() and (folder / "src" / "magna_master").is_dir():
-            return folder
-    return None
+    return next((folder for folder in [here, *here.parents] if is_checkout(folder)), None)
 
 
 def venv_python(root: Path) -> Path:
@@ -150,7 +152,6 @@ def run_in_workspace(prog: str, anchor: str | os.PathLike, command: list[str], m
             verdict = f"cannot start {argv[0]} to enter the workspace in {root}: {error}"
     print(f"{prog}: {verdict}", file=sys.stderr)
     raise WorkspaceNotReady(verdict)
-
 
 
 def run_module_in_workspace(module: str, anchor: str | os.PathLike, modules=()) -> None:

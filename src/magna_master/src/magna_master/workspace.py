@@ -5,25 +5,23 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
+from magna_common.workspace_bootstrap import is_checkout
+
 
 class WorkspaceNotFound(RuntimeError):
     pass
 
 
-def _looks_like_root(path: Path) -> bool:
-    return (path / "magna").is_file() and (path / "src" / "magna_master").is_dir()
-
-
 def find_root(start: Path | None = None) -> Path:
     """The repository root: $MAGNA_ROOT, else the clone this module lives in, else a parent of `start`."""
     env_root = os.environ.get("MAGNA_ROOT")
-    if env_root and _looks_like_root(Path(env_root)):
+    if env_root and is_checkout(Path(env_root)):
         return Path(env_root).resolve()
     candidates = [Path(__file__).resolve()]
     candidates.append((start or Path.cwd()).resolve())
     for candidate in candidates:
         for parent in [candidate, *candidate.parents]:
-            if _looks_like_root(parent):
+            if is_checkout(parent):
                 return parent
     raise WorkspaceNotFound(
         "cannot find the MAGNA workspace: run magna from a clone, or set MAGNA_ROOT to the repository root"
