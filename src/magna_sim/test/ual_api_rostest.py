@@ -20,7 +20,7 @@ from std_srvs.srv import Empty
 from uav_abstraction_layer.msg import State
 from uav_abstraction_layer.srv import GoToWaypoint, GoToWaypointGeo, Land, SetHome, TakeOff
 
-from magna_sim.geo import enu_to_geodetic
+from magna_common.geo import enu_to_geodetic
 
 IDS = (1, 2, 3)
 

@@ -31,7 +31,8 @@ from uav_abstraction_layer.srv import (
     TakeOffResponse,
 )
 
-from . import geo
+from magna_common import geo
+
 from .command_queue import CommandQueue, LoopStopped
 from .streams import stream_publisher
 from .ual_logic import CommandRefused, UalLogic, UalState

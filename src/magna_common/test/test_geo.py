@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from magna_sim.geo import E2, A, ecef_to_geodetic, enu_to_geodetic, geodetic_to_ecef, geodetic_to_enu
+from magna_common.geo import E2, A, ecef_to_geodetic, enu_to_geodetic, geodetic_to_ecef, geodetic_to_enu
 
 SEVILLE = (37.4109, -6.0016, 20.0)
 B = A * (1.0 - 1.0 / 298.257223563)  # semi-minor axis
