@@ -13,6 +13,7 @@ from magna_uav.nai.interface import NavigationInterface
 from magna_uav.recorder import Recorder, read_csv
 from magna_uav.roles import (
     FLYING_AUTO,
+    FLYING_MANUAL,
     LANDED_ARMED,
     BasicMoveRole,
     FollowAgentAtDistanceRole,
@@ -323,3 +324,24 @@ def test_the_smoothed_paths_last_stretch_aims_at_the_waypoint_itself():
     role = FollowPathRole([[0, 0, 3], [10, 0, 3], [10, 10, 3]], 0.9, smooth_path_mode=3)
     target = role.waypoints[1]
     assert np.array_equal(role._carrot(target + [-0.5, 1.5, 0], target), target)
+
+
+def test_a_pilot_take_over_ends_the_role_aborted_and_magna_stops_commanding():
+    manager, world, uavs, recorder, config = setup([[0, 0, 0]])
+    take_off(manager, uavs)
+
+    def pilot_takes_over_after_2_s():
+        if world.t > 2.0 and uavs[0].state == FLYING_AUTO:
+            uavs[0].state = FLYING_MANUAL  # what the UAL shows once the autopilot leaves OFFBOARD
+        return False
+
+    result = fly(manager, FollowPathRole([[20, 0, 3]], config.accepted_target_radius),
+                 preempt_requested=pilot_takes_over_after_2_s)
+    assert result.outcome == "aborted" and result.events == ["pilot_takeover"]
+    assert "safety pilot has taken UAV 1 over" in result.message
+    commands = len(uavs[0].calls)
+    manager.hover()
+    assert len(uavs[0].calls) == commands, "no command goes to a UAV the pilot flies"
+    # A role begun while the pilot flies ends at once, the same way.
+    result = fly(manager, LandRole())
+    assert result.outcome == "aborted" and result.events == ["pilot_takeover"] and result.steps == 0

@@ -20,11 +20,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from magna_uav.roles import FLY, FLYING_AUTO, HOVER, LAND, TAKE_OFF, WAIT, WAYPOINT, Role, RoleStep
+from magna_uav.roles import FLY, FLYING_AUTO, FLYING_MANUAL, HOVER, LAND, TAKE_OFF, WAIT, WAYPOINT, Role, RoleStep
 
 PREEMPTED = "preempted"
 ABORTED = "aborted"
 UTM_NEW_FLIGHTPLAN = "utm_new_flightplan"
+# A safety pilot took the UAV (its UAL is FLYING_MANUAL: the autopilot left OFFBOARD/GUIDED). The role
+# ends aborted with this event, whether or not it began so: nobody may command a UAV a pilot flies.
+PILOT_TAKEOVER = "pilot_takeover"
 
 # What ends a role when it newly appears, by priority, as the evaluator orders its outcomes.
 _TROUBLES = (("collision", "collision"), ("out_of_bounds", ABORTED), ("GS_critical_event", "GS_critical_event"),
@@ -106,6 +109,10 @@ class UavManager:
                     self._hover()
                     return RoleResult(UTM_NEW_FLIGHTPLAN, "the UTM issued a new flight plan", steps)
                 now = self.clock.now()
+                if self._pilot_flies():
+                    return RoleResult(ABORTED, f"{role.name}: the safety pilot has taken UAV {self.view.own_id} "
+                                               f"over (UAL state FLYING_MANUAL); MAGNA no longer commands it",
+                                      steps, [PILOT_TAKEOVER])
                 with self.lock:
                     evaluation = self.evaluator.step(self.view, self.gs_critical_event)
                     if standing is None:
@@ -125,6 +132,10 @@ class UavManager:
                 self.clock.sleep()
         finally:
             self.role_name = "idle"
+
+    def _pilot_flies(self) -> bool:
+        with self.lock:
+            return self.view.has_own and self.view.own.ual_state == FLYING_MANUAL
 
     def hover(self) -> None:
         """Hold the current pose (between roles, and after one ends)."""

@@ -31,7 +31,7 @@ from magna_sm.simple_action import SimpleActionServer
 from magna_uav.config import ConfigError, UavConfig, configs_from_mission, configs_from_mission_file
 from magna_uav.evaluator import Evaluator
 from magna_uav.goals import ROLE_ACTIONS, role_from_goal
-from magna_uav.manager import ABORTED, PREEMPTED, Clock, RoleResult, UavManager
+from magna_uav.manager import ABORTED, PILOT_TAKEOVER, PREEMPTED, Clock, RoleResult, UavManager
 from magna_uav.nai.interface import NavigationInterface
 from magna_uav.paths import path_msg
 from magna_uav.recorder import Recorder
@@ -414,6 +414,9 @@ class UavManagerNode:
         except LookupError:  # the role ended before its first step: no row to mark
             pass
         critical = result.outcome if result.outcome in ("collision", "low_battery", "GS_critical_event") else ""
+        if PILOT_TAKEOVER in result.events:
+            critical = PILOT_TAKEOVER
+            rospy.logwarn(f"UAV {self.uav_id}: {result.message}")
         self.reporter.report(f"{action}_{result.outcome}", critical)
         self.desk.release(order)
         order.finish(result)
