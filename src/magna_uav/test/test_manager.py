@@ -338,7 +338,7 @@ def test_a_pilot_take_over_ends_the_role_aborted_and_magna_stops_commanding():
     result = fly(manager, FollowPathRole([[20, 0, 3]], config.accepted_target_radius),
                  preempt_requested=pilot_takes_over_after_2_s)
     assert result.outcome == "aborted" and result.events == ["pilot_takeover"]
-    assert "safety pilot has taken UAV 1 over" in result.message
+    assert "UAV 1 is out of MAGNA's hands: its UAL is FLYING_MANUAL (a safety pilot" in result.message
     commands = len(uavs[0].calls)
     manager.hover()
     assert len(uavs[0].calls) == commands, "no command goes to a UAV the pilot flies"

@@ -110,8 +110,9 @@ class UavManager:
                     return RoleResult(UTM_NEW_FLIGHTPLAN, "the UTM issued a new flight plan", steps)
                 now = self.clock.now()
                 if self._pilot_flies():
-                    return RoleResult(ABORTED, f"{role.name}: the safety pilot has taken UAV {self.view.own_id} "
-                                               f"over (UAL state FLYING_MANUAL); MAGNA no longer commands it",
+                    return RoleResult(ABORTED, f"{role.name}: UAV {self.view.own_id} is out of MAGNA's hands: its UAL "
+                                               f"is FLYING_MANUAL (a safety pilot took it over, or its autopilot "
+                                               f"left OFFBOARD/GUIDED on a failsafe); MAGNA no longer commands it",
                                       steps, [PILOT_TAKEOVER])
                 with self.lock:
                     evaluation = self.evaluator.step(self.view, self.gs_critical_event)
