@@ -1,7 +1,7 @@
 """How the docs test finds examples: README blocks, help sections, comments and marks."""
 import pytest
 
-from magna_master.ros_master import free_port
+from magna_common.ports import free_port
 from tests import doc_examples
 
 

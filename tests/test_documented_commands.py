@@ -16,7 +16,7 @@ import time
 
 import pytest
 
-from magna_master.ros_master import free_port
+from magna_common.ports import free_port
 from tests import doc_examples
 
 RESULTS = doc_examples.ROOT / "build" / "magna_test_results" / "documented_commands.md"

@@ -13,7 +13,7 @@ import subprocess
 
 import pytest
 
-from magna_master.ros_master import free_port
+from magna_common.ports import free_port
 from tests.support import ros_nodes
 
 TIMEOUT = 60.0  # s: a guard against a node that waits for a master, not a speed expectation

@@ -5,7 +5,6 @@ import json
 import os
 import re
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -15,6 +14,7 @@ from pathlib import Path
 import pytest
 
 from magna_common.cli_vocabulary import deprecation_line
+from magna_common.ports import free_port
 from mlr import cli
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -135,12 +135,6 @@ def test_board_refuses_a_folder_without_logs(tmp_path, capsys):
     assert f"{tmp_path / 'missing'}: no such folder" in capsys.readouterr().err
     assert cli.main(["board", str(tmp_path)]) == 2
     assert f"{tmp_path}: no TensorBoard logs in it" in capsys.readouterr().err
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def serves(port: int) -> bool:

@@ -107,7 +107,7 @@ def _voice_env(uri):
 
 
 def test_without_a_ros_master_the_assistant_says_what_to_start():
-    from magna_master.ros_master import free_port
+    from magna_common.ports import free_port
 
     result = subprocess.run([sys.executable, "-m", "voice", "--wait", "1"], input="drone one land\n",
                             env=_voice_env(f"http://127.0.0.1:{free_port()}"), capture_output=True, text=True,

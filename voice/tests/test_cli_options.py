@@ -58,7 +58,8 @@ rospy.spin()
 @pytest.mark.ros
 @pytest.mark.timeout(240)
 def test_the_assistant_waits_for_a_mission_that_is_still_starting(tmp_path):
-    from magna_master.ros_master import RosMaster, free_port
+    from magna_common.ports import free_port
+    from magna_master.ros_master import RosMaster
 
     # the fixtures' RosMaster, started by hand: the master must come up after the assistant, on a port known before
     port = free_port()

@@ -7,7 +7,8 @@ import xmlrpc.client
 
 import pytest
 
-from magna_master.ros_master import RosMaster, RosMasterError, free_port
+from magna_common.ports import free_port
+from magna_master.ros_master import RosMaster, RosMasterError
 
 
 def _alive(pid):

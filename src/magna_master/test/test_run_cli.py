@@ -9,8 +9,8 @@ from pathlib import Path
 
 import pytest
 
+from magna_common.ports import free_port
 from magna_master import cli, storage
-from magna_master.ros_master import free_port
 from magna_master.supervisor import pid_alive
 
 ROOT = Path(__file__).resolve().parents[3]

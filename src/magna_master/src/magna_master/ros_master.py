@@ -9,7 +9,6 @@ process group, and nothing else.
 from __future__ import annotations
 
 import os
-import socket
 import subprocess
 import tempfile
 import time
@@ -18,18 +17,12 @@ import xmlrpc.client
 from collections.abc import Sequence
 from pathlib import Path
 
+from magna_common.ports import free_port
 from magna_gs.processes import TimeoutTransport, end_process_group
 
 
 class RosMasterError(RuntimeError):
     pass
-
-
-def free_port(host: str = "127.0.0.1") -> int:
-    """A TCP port that nothing listens on right now (the OS picks it)."""
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
-        sock.bind((host, 0))
-        return sock.getsockname()[1]
 
 
 def _master_pid(uri: str, timeout: float) -> int | None:
