@@ -13,6 +13,7 @@ import time
 
 import pytest
 
+from magna_common.ports import free_port
 from magna_mavlink.udp_proxy import UdpProxy, parse_host_port
 
 WAIT = 10.0  # s: a guard against hangs, never a speed expectation
@@ -269,10 +270,7 @@ def test_cli_refuses_bad_options_with_status_2():
 
 def test_cli_forwards_and_stops_cleanly_on_sigterm():
     with udp_socket() as vehicle, udp_socket() as client:
-        probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        probe.bind(("127.0.0.1", 0))
-        port = probe.getsockname()[1]
-        probe.close()  # the CLI binds it next; another test taking it in between would fail its bind
+        port = free_port(udp=True)
         host, vport = vehicle.getsockname()
         process = run_cli("--listen", f"127.0.0.1:{port}", "--to", f"{host}:{vport}", "--delay", "0.01")
         try:
