@@ -16,7 +16,7 @@ origin_geo: [37.4107, -6.0028, 12.0]
 uavs:
   3: {url: "udpin:0.0.0.0:14542", autopilot: px4, arming: auto, system_id: 7}
   4: {url: "/dev/ttyACM0,57600"}
-  5: {stand_in: true}
+  5: {stand_in: true, link_faults: {loss: 0.2, delay: 0.05, cut_at: 30, cut_for: 5, seed: 3}}
 """))
     assert fleet.origin_geo == (37.4107, -6.0028, 12.0)
     three, four, five = fleet.uavs[3], fleet.uavs[4], fleet.uavs[5]
@@ -25,6 +25,9 @@ uavs:
     assert four.arming_for("real") == "pilot" and four.arming_for("hil") == "auto"
     assert three.arming_for("real") == "auto"  # said explicitly: kept
     assert five.stand_in and five.url == ""
+    assert five.link_faults.proxy_arguments() == ["--loss", "0.2", "--delay", "0.05", "--seed", "3",
+                                                  "--cut-at", "30", "--cut-for", "5"]
+    assert three.link_faults is None
 
 
 @pytest.mark.parametrize("url", ["udpin:0.0.0.0:14540", "udpout:192.168.1.10:14550", "tcp:127.0.0.1:5760",
@@ -56,6 +59,11 @@ def test_other_text_is_no_url_and_the_fix_is_shown(url, why):
     ("origin_geo: [37.4, -6.0]\nuavs: {3: {stand_in: true}}", "origin_geo", "[latitude, longitude, altitude]"),
     ("origin_geo: [97.4, -6.0, 0]\nuavs: {3: {stand_in: true}}", "origin_geo", "-90..90"),
     ("uav: {3: {stand_in: true}}", "uav", "origin_geo, uavs"),
+    ("uavs: {3: {url: 'udpin:0.0.0.0:1', link_faults: {loss: 0.2}}}", "uavs.3.link_faults", "udp_proxy"),
+    ("uavs: {3: {stand_in: true, link_faults: {loss: 1.5}}}", "uavs.3.link_faults.loss", "below 1"),
+    ("uavs: {3: {stand_in: true, link_faults: {delay: -1}}}", "uavs.3.link_faults.delay", "0 or more"),
+    ("uavs: {3: {stand_in: true, link_faults: {cut_at: 3}}}", "uavs.3.link_faults", "cut_at and cut_for"),
+    ("uavs: {3: {stand_in: true, link_faults: {jitter: 3}}}", "uavs.3.link_faults.jitter", "loss, delay"),
     ("- 3", "the file must be a mapping", "uavs"),
     ("uavs: [3: {", "not valid YAML", ""),
 ])

@@ -13,9 +13,12 @@ real autopilot is plugged in, because that changes from one field day to the nex
         system_id: 3                        # MAVLink system id of the vehicle (default: the ID)
       4:
         stand_in: true                      # hil only: magna_sim flies a PX4-like vehicle for it
+        link_faults: {loss: 0.2, delay: 0.05, cut_at: 30, cut_for: 5, seed: 1}   # optional, stand-ins only
 
 Every hil or real UAV of the mission needs an entry, and only they may have one. A `stand_in` UAV
-has no URL: the ground station gives magna_sim's vehicle free ports and connects to them.
+has no URL: the ground station gives magna_sim's vehicle free ports and connects to them. Its
+`link_faults` put a udp_proxy on that link (a fraction of packets lost each way, a one-way delay in s,
+a cut of `cut_for` s starting `cut_at` wall s after the bridge starts), to try a mission on a bad radio.
 `load_fleet` parses and checks a file once; `check_against_mission` says what does not fit a
 mission. Errors name the file, the field and the fix.
 """
@@ -32,7 +35,8 @@ from magna_mavlink.autopilot import ARDUPILOT, PX4
 
 AUTOPILOT_CHOICES = ("auto", PX4, ARDUPILOT)
 ARMING_POLICIES = ("auto", "pilot")
-UAV_KEYS = ("url", "autopilot", "arming", "system_id", "stand_in")
+UAV_KEYS = ("url", "autopilot", "arming", "system_id", "stand_in", "link_faults")
+FAULT_KEYS = ("loss", "delay", "cut_at", "cut_for", "seed")
 TOP_KEYS = ("origin_geo", "uavs")
 MAVLINK_MODES = ("hil", "real")
 
@@ -46,6 +50,22 @@ class FleetError(ValueError):
 
 
 @dataclass(frozen=True)
+class LinkFaults:
+    loss: float = 0.0  # fraction of packets dropped in each direction
+    delay: float = 0.0  # s added one way
+    cut_at: float | None = None  # wall s after the bridge starts
+    cut_for: float = 0.0  # s
+    seed: int = 0
+
+    def proxy_arguments(self) -> list[str]:
+        """The udp_proxy options that make these faults."""
+        args = ["--loss", f"{self.loss:g}", "--delay", f"{self.delay:g}", "--seed", str(self.seed)]
+        if self.cut_at is not None:
+            args += ["--cut-at", f"{self.cut_at:g}", "--cut-for", f"{self.cut_for:g}"]
+        return args
+
+
+@dataclass(frozen=True)
 class FleetUav:
     id: int
     url: str  # "" for a stand-in: the ground station picks its ports
@@ -53,6 +73,7 @@ class FleetUav:
     arming: str | None  # auto | pilot; None: the mode decides (pilot for real, auto for hil)
     system_id: int
     stand_in: bool
+    link_faults: LinkFaults | None = None
 
     def arming_for(self, mode: str) -> str:
         if self.arming is not None:
@@ -199,4 +220,37 @@ def _uav(source: str, key, entry) -> FleetUav:
     system_id = entry.get("system_id", key)
     if isinstance(system_id, bool) or not isinstance(system_id, int) or not 1 <= system_id <= 255:
         raise FleetError(f"{source}: {where}.system_id: {system_id!r} must be a MAVLink system id, 1..255")
-    return FleetUav(id=key, url=url, autopilot=autopilot, arming=arming, system_id=system_id, stand_in=stand_in)
+    faults = _faults(source, f"{where}.link_faults", entry.get("link_faults"), stand_in)
+    return FleetUav(id=key, url=url, autopilot=autopilot, arming=arming, system_id=system_id, stand_in=stand_in,
+                    link_faults=faults)
+
+
+def _faults(source: str, where: str, value, stand_in: bool) -> LinkFaults | None:
+    if value is None:
+        return None
+    if not stand_in:
+        raise FleetError(f"{source}: {where}: only a stand_in's link can be given faults; for a real link run "
+                         f"`rosrun magna_mavlink udp_proxy` in front of it and point url at the proxy")
+    if not isinstance(value, dict):
+        raise FleetError(f"{source}: {where}: give a mapping such as {{loss: 0.2, delay: 0.05}}, got {value!r}")
+    _no_unknown_keys(source, f"{where}.", value, FAULT_KEYS)
+    numbers = {}
+    for key in ("loss", "delay", "cut_at", "cut_for"):
+        number = value.get(key)
+        if number is None:
+            continue
+        if isinstance(number, bool) or not isinstance(number, (int, float)) or not math.isfinite(number) \
+                or number < 0:
+            raise FleetError(f"{source}: {where}.{key}: {number!r} must be a number of 0 or more")
+        numbers[key] = float(number)
+    if numbers.get("loss", 0.0) >= 1.0:
+        raise FleetError(f"{source}: {where}.loss: {numbers['loss']:g} is a fraction of packets, below 1 "
+                         f"(0.2 drops one in five)")
+    if ("cut_at" in numbers) != ("cut_for" in numbers):
+        raise FleetError(f"{source}: {where}: give cut_at and cut_for together (when the cut starts, how long "
+                         f"it lasts, in s)")
+    seed = value.get("seed", 0)
+    if isinstance(seed, bool) or not isinstance(seed, int):
+        raise FleetError(f"{source}: {where}.seed: {seed!r} must be a whole number")
+    return LinkFaults(loss=numbers.get("loss", 0.0), delay=numbers.get("delay", 0.0), cut_at=numbers.get("cut_at"),
+                      cut_for=numbers.get("cut_for", 0.0), seed=seed)
