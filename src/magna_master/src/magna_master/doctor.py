@@ -3,7 +3,8 @@
 Each check returns a `CheckResult`; the live check starts a private master on a
 free port, serves the UAL take_off service and publishes UAL states against it,
 and measures the round trips. Nothing outside this process and its master is
-touched.
+touched. `--mavlink URL` checks a MAVLink link instead (magna_mavlink.link_check):
+heartbeat, autopilot, system id, flight mode, armed, position valid, home.
 """
 from __future__ import annotations
 
@@ -20,7 +21,19 @@ from pathlib import Path
 
 from magna_master.workspace import Workspace
 
-HELP = "check the installation (packages, venv, build, message API) and run a live ROS round trip"
+HELP = ("check the installation (packages, venv, build, message API) and run a live ROS round trip; "
+        "or, with --mavlink URL, a MAVLink vehicle's link")
+MAVLINK_TIMEOUT = 5.0  # s for the heartbeat, then as long again for the position and the home
+EXAMPLES = """\
+examples:
+  magna doctor --no-live
+  magna doctor --mavlink udpin:0.0.0.0:14540        # [hardware] PX4 SITL instance 0, or a vehicle sending there
+  magna doctor --mavlink udpout:127.0.0.1:14580 --timeout 10    # [hardware] a vehicle that waits to be spoken to
+  magna doctor --mavlink /dev/ttyACM0,57600          # [hardware] an autopilot on USB or a telemetry radio
+
+With --mavlink only the link is checked: exit status 0 when every line is ok, 1 when one fails,
+2 when the URL is not one (forms: udpin:HOST:PORT, udpout:HOST:PORT, tcp:HOST:PORT, DEVICE[,BAUD]).
+"""
 
 # The checksums of GRVC UAL v3: real UAL servers and clients accept only these.
 GRVC_UAL_MD5 = {
@@ -42,10 +55,21 @@ class CheckResult:
 
 
 def add_arguments(parser) -> None:
+    import argparse
+
+    parser.formatter_class = argparse.RawDescriptionHelpFormatter
+    parser.epilog = EXAMPLES
     parser.add_argument("--no-live", action="store_true",
                         help="skip the live ROS round trip (no master is started)")
     parser.add_argument("--round-trips", type=int, default=200, metavar="N",
                         help="service calls and messages in the live check (default: %(default)s)")
+    parser.add_argument("--mavlink", metavar="URL",
+                        help="check only this MAVLink link (pymavlink URL: udpin:0.0.0.0:14540, "
+                             "udpout:127.0.0.1:14580, tcp:HOST:PORT, /dev/ttyACM0,57600): heartbeat, autopilot, "
+                             "system id, flight mode, armed, position valid, home")
+    parser.add_argument("--timeout", type=float, metavar="S",
+                        help=f"with --mavlink: seconds to wait for the heartbeat, then again for the position and the "
+                             f"home (default {MAVLINK_TIMEOUT:g})")
 
 
 def check_apt(workspace: Workspace) -> CheckResult:
@@ -178,7 +202,41 @@ def check_live_graph(round_trips: int) -> CheckResult:
         f"state topic p50 {statistics.median(latencies):.2f} ms ({round_trips} each)")
 
 
+def check_mavlink(url: str, timeout: float) -> list[CheckResult]:
+    """The lines of magna_mavlink.link_check as doctor results; BadUrl for a URL that is not one."""
+    from magna_mavlink.link_check import check_link
+
+    return [CheckResult(c.name, c.ok, c.detail, c.fix) for c in check_link(url, timeout)]
+
+
+def run_mavlink(args) -> int:
+    from magna_master.cli import UsageError
+    from magna_mavlink.link_check import BadUrl, parse_url
+
+    timeout = MAVLINK_TIMEOUT if args.timeout is None else args.timeout
+    if not timeout > 0:
+        raise UsageError(f"--timeout {timeout:g}: give a positive number of seconds")
+    try:
+        parse_url(args.mavlink)
+    except BadUrl as error:
+        raise UsageError(f"--mavlink {error}") from None
+    print(f"MAVLink link {args.mavlink} (waiting up to {timeout:g} s for the heartbeat, then for the rest)",
+          flush=True)
+    results = check_mavlink(args.mavlink, timeout)
+    for result in results:
+        _print(result)
+        if result.fix:
+            print(f"       fix: {result.fix}", flush=True)
+    return _summary(results, fixes_shown=True)
+
+
 def run(args) -> int:
+    if getattr(args, "mavlink", None) is not None:
+        return run_mavlink(args)
+    if getattr(args, "timeout", None) is not None:
+        from magna_master.cli import UsageError
+
+        raise UsageError("--timeout goes with --mavlink URL (the wait for a MAVLink vehicle)")
     workspace = Workspace.locate()
     checks = [lambda: check_apt(workspace), lambda: check_venv(workspace), lambda: check_build(workspace)]
     results: list[CheckResult] = []
@@ -194,9 +252,14 @@ def run(args) -> int:
             else:
                 results.append(check_live_graph(args.round_trips))
             _print(results[-1])
+    return _summary(results)
+
+
+def _summary(results: list[CheckResult], fixes_shown: bool = False) -> int:
+    """The last line; the fixes of the failures too, unless each line already showed its own."""
     failed = [r for r in results if not r.ok]
     print(f"\n{len(results) - len(failed)} of {len(results)} checks passed"
-          + ("" if not failed else "; fix: " + ", ".join(sorted({r.fix for r in failed if r.fix}))))
+          + ("" if not failed or fixes_shown else "; fix: " + ", ".join(sorted({r.fix for r in failed if r.fix}))))
     return 1 if failed else 0
 
 

@@ -1,0 +1,79 @@
+"""`magna doctor --mavlink URL`, as a user runs it: every line ok against a vehicle (exit 0), a clear line
+with the URL and the fix when no vehicle answers (exit 1), a refused URL (exit 2).
+
+The vehicle is magna_mavlink's scripted test vehicle (a UDP socket in this process speaking MAVLink 2)."""
+from __future__ import annotations
+
+import importlib.util
+import subprocess
+import sys
+from pathlib import Path
+
+from magna_common.ports import free_port
+
+ROOT = Path(__file__).resolve().parents[3]
+TIMEOUT = 120  # s for the whole command: a guard against hangs
+
+
+def scripted_vehicle_module():
+    """magna_mavlink's test of link_check, for its ScriptedVehicle (test folders are not packages)."""
+    path = ROOT / "src" / "magna_mavlink" / "test" / "test_link_check.py"
+    spec = importlib.util.spec_from_file_location("magna_mavlink_scripted_vehicle", path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def doctor(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([str(ROOT / "magna"), "doctor", *args], capture_output=True, text=True, timeout=TIMEOUT)
+
+
+def test_every_line_passes_against_a_vehicle():
+    with scripted_vehicle_module().ScriptedVehicle(mode="OFFBOARD", armed=True) as vehicle:
+        url = f"udpout:127.0.0.1:{vehicle.port}"
+        out = doctor("--mavlink", url, "--timeout", "10")
+    assert out.returncode == 0, out.stdout + out.stderr
+    lines = out.stdout.splitlines()
+    assert lines[0].startswith(f"MAVLink link {url} ")
+    for name, detail in (("heartbeat", f"from {url} after"), ("autopilot", "PX4 (HEARTBEAT.autopilot 12)"),
+                         ("system id", "1, component 1"), ("flight mode", "OFFBOARD (the UAL's set-point mode)"),
+                         ("armed", "armed"), ("position valid", "LOCAL_POSITION_NED"),
+                         ("home", "47.3977420, 8.5455940, 488.0 m")):
+        assert any(line.startswith(f"[ok  ] {name:<18} {detail}") for line in lines), (name, out.stdout)
+    assert lines[-1] == "7 of 7 checks passed"
+    assert "fix:" not in out.stdout
+
+
+def test_no_vehicle_at_the_url_is_one_failed_line_with_the_url_and_the_fix():
+    url = f"udpout:127.0.0.1:{free_port(udp=True)}"
+    out = doctor("--mavlink", url, "--timeout", "0.5")
+    assert out.returncode == 1, out.stdout + out.stderr
+    assert f"[FAIL] heartbeat          no HEARTBEAT from a vehicle at {url} within 0.5 s" in out.stdout
+    assert "       fix: is a vehicle running and listening at 127.0.0.1:" in out.stdout
+    assert out.stdout.splitlines()[-1] == "0 of 1 checks passed"
+
+
+def test_a_failing_line_among_passing_ones_exits_1():
+    with scripted_vehicle_module().ScriptedVehicle(home=False) as vehicle:
+        out = doctor("--mavlink", f"udpout:127.0.0.1:{vehicle.port}", "--timeout", "2")
+    assert out.returncode == 1, out.stdout + out.stderr
+    assert "[ok  ] position valid" in out.stdout and "[FAIL] home               no HOME_POSITION within 2 s" \
+        in out.stdout
+    assert out.stdout.splitlines()[-1] == "6 of 7 checks passed"
+
+
+def test_a_bad_url_or_timeout_is_a_usage_error():
+    out = doctor("--mavlink", "udpin:14540")
+    assert out.returncode == 2 and out.stdout == ""
+    assert out.stderr.startswith("magna doctor: --mavlink 'udpin:14540': after 'udpin:' give HOST:PORT; use ")
+    out = doctor("--mavlink", "udpin:0.0.0.0:14540", "--timeout", "0")
+    assert out.returncode == 2 and "--timeout 0: give a positive number of seconds" in out.stderr
+    out = doctor("--timeout", "3")
+    assert out.returncode == 2 and "--timeout goes with --mavlink URL" in out.stderr
+
+
+def test_help_shows_the_mavlink_check():
+    out = doctor("--help")
+    assert out.returncode == 0
+    assert "--mavlink URL" in out.stdout and "magna doctor --mavlink udpin:0.0.0.0:14540" in out.stdout
