@@ -226,6 +226,17 @@ def test_a_scheduled_cut_covers_its_window_only(link):
     assert nothing_waiting(vehicle)
 
 
+def test_an_observer_sees_every_packet_entering_the_link_with_its_arrival_time(link):
+    make_proxy, client, vehicle = link
+    seen = []
+    proxy = make_proxy(loss=1.0, observe=lambda direction, at, data: seen.append((direction, at, data)))
+    before = time.monotonic()
+    client.sendto(b"observed, then lost", proxy.listen_address)
+    wait_until(lambda: proxy.stats().to_vehicle.lost == 1, "the packet to be lost")
+    assert [(d, data) for d, _, data in seen] == [("to_vehicle", b"observed, then lost")]
+    assert before <= seen[0][1] <= time.monotonic()
+
+
 def test_stop_ends_the_thread_and_closes_every_socket(link):
     make_proxy, client, vehicle = link
     proxy = make_proxy(delay=0.5)

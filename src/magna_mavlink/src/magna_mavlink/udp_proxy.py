@@ -25,6 +25,7 @@ import sys
 import threading
 import time
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 TO_VEHICLE, TO_CLIENT = "to_vehicle", "to_client"
@@ -85,10 +86,13 @@ class UdpProxy:
     vehicle: (host, port) of the vehicle.
     loss: fraction 0..1 of the packets dropped in each direction; delay: one-way seconds added.
     cut_at, cut_for: a scheduled cut, seconds after start(), lasting cut_for seconds.
+    observe: called as observe(direction, time.monotonic() at arrival, data) for every packet that enters
+    the link, in the proxy's thread (keep it short); a bench uses it to time what a vehicle receives.
     """
 
     def __init__(self, listen: tuple[str, int], vehicle: tuple[str, int], loss: float = 0.0, delay: float = 0.0,
-                 cut_at: float | None = None, cut_for: float | None = None, seed: int = 0):
+                 cut_at: float | None = None, cut_for: float | None = None, seed: int = 0,
+                 observe: Callable[[str, float, bytes], None] | None = None):
         if not 0.0 <= loss <= 1.0:
             raise ValueError(f"loss {loss}: give a fraction from 0 to 1 (0.2 drops one packet in five)")
         if not (delay >= 0.0 and math.isfinite(delay)):
@@ -100,6 +104,7 @@ class UdpProxy:
         self.loss, self.delay = float(loss), float(delay)
         self.cut_at, self.cut_for = cut_at, cut_for
         self.seed = seed
+        self.observe = observe
         self._random = {name: random.Random(seed * len(DIRECTIONS) + k) for k, name in enumerate(DIRECTIONS)}
         self._lock = threading.RLock()  # re-entrant: a signal handler (cut on SIGUSR1) may interrupt stats()
         self._stats = ProxyStats()
@@ -235,6 +240,8 @@ class UdpProxy:
             except OSError:  # e.g. an ICMP error for an earlier send: not a reason to stop
                 return
             now = time.monotonic()
+            if self.observe is not None:
+                self.observe(direction, now, data)
             with self._lock:
                 counters = getattr(self._stats, direction)
                 counters.received += 1
