@@ -31,11 +31,12 @@ from magna_gs.processes import TimeoutTransport, end_process_group
 WATCHER = "/magna_bag_watcher"  # the caller id of our master and node queries
 # The UAL pose and velocity and the managers' navigation steps let mlr rebuild every recorded
 # control step from the bag (mlr.bags), e.g. for flights whose CSVs are lost or never written.
+# A hil or real UAV's bridge says there when its MAVLink link is lost and found again.
 WORLD_TOPICS = ("/tf", "/tf_static", "/magna/world/markers", "/magna/sm/mission/structure",
                 "/magna/sm/mission/status", "/magna/gs/critical_event", "/magna/utm/flight_plans")
 UAV_TOPICS = ("/uav_{id}/ual/pose", "/uav_{id}/ual/velocity", "/magna/uav_{id}/navigation",
               "/magna/uav_{id}/path/raw", "/magna/uav_{id}/path/smoothed", "/magna/uav_{id}/goal",
-              "/magna/utm/flight_plan/{id}")
+              "/magna/utm/flight_plan/{id}", "/uav_{id}/ual_mavlink/link")
 
 
 def mission_topics(uav_ids: Iterable[int]) -> list[str]:

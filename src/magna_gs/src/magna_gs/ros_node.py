@@ -42,12 +42,14 @@ from uav_abstraction_layer.msg import State as UalState
 from magna_gs.bag_recorder import BagRecorder, mission_topics
 from magna_gs.commands import CommandPlan, CommandRefused, Param, UavStatus, plan_command
 from magna_gs.factory import ActionClients, RosStateFactory, wait_sim_seconds, world_poses
+from magna_gs.mavlink_uavs import MavlinkUavError, MavlinkUavs, resolve_origin
 from magna_gs.mission.build import build_machine
 from magna_gs.mission.loader import MissionError, load_mission
 from magna_gs.processes import end_parent_launch, end_process_group
 from magna_gs.sim_pause import SimulationPause
 from magna_gs.utm import choose_plan, mission_uses_utm
 from magna_gs.utm_client import UtmLink
+from magna_mavlink.fleet import FleetError, check_against_mission, load_fleet, mavlink_uavs
 from magna_sm.introspection import IntrospectionServer
 from magna_uav.files import write_atomically
 
@@ -77,6 +79,9 @@ Private parameters (defaults):
   ~button_timeout (0)        s of sim time after which a wait for the operator's button goes on; 0: never
   ~utm_plan ("")             a UTM plan file (JSON); with it, or when the mission flies "from utm", the
                              ground station starts the UTM node (rosrun magna_gs utm)
+  ~fleet_file ("")           the fleet file (YAML) of the mission's hil and real UAVs: for each, where its
+                             autopilot is; the ground station starts one ual_mavlink bridge per UAV (see
+                             magna_mavlink's README). Needed when the mission has hil or real UAVs.
 """
 
 SUCCESS_OUTCOMES = ("completed", "succeeded", "success", "mission_completed", "finished")
@@ -112,6 +117,8 @@ class GroundStationServices:
         self.bag = bag
         self.utm: UtmLink | None = None  # the UTM's flight plans, when the mission flies them
         self.utm_process: subprocess.Popen | None = None
+        self.mavlink: MavlinkUavs | None = None  # the bridges of the hil and real UAVs, when there are any
+        self.setup_errors: list[str] = []  # why the mission could not start (a MAVLink vehicle not there)
 
     # --- helpers the states use ------------------------------------------------------------
     def action_client(self, uav_id: int, action: str):
@@ -205,7 +212,10 @@ class GroundStationServices:
             return False
         rospy.wait_for_service("/magna/sim/spawn_model", timeout=30.0)
         spawn = rospy.ServiceProxy("/magna/sim/spawn_model", SpawnModel)
-        for config, definition in zip(agents, initial_poses, strict=False):
+        placed = list(zip(agents, initial_poses, strict=False))
+        # MAVLink UAVs first: a vehicle that is not there stops the mission before anything flies.
+        placed.sort(key=lambda item: not (self.mavlink is not None and self.mavlink.flies(item[0].id)))
+        for config, definition in placed:
             yaw = float(definition.yaw or 0.0)
             poses = self.resolve_poses(definition.as_list()[:4])
             position = poses[0][0]
@@ -213,23 +223,51 @@ class GroundStationServices:
             pose.position.x, pose.position.y, pose.position.z = (float(v) for v in position)
             pose.orientation.z, pose.orientation.w = np.sin(yaw / 2), np.cos(yaw / 2)
             r, g, b, a = config.marker_rgba
-            answer = spawn(name=f"uav_{config.id}", kind="uav", pose=pose, color=ColorRGBA(r, g, b, a),
-                           uav_id=config.id, airframe=config.model, flight_model="light")
-            if not answer.success:
-                rospy.logerr(f"spawn_agents: UAV {config.id}: {answer.message}")
-                return False
-            self.spawned.append(config.id)
+            request = {"name": f"uav_{config.id}", "kind": "uav", "pose": pose, "color": ColorRGBA(r, g, b, a),
+                       "uav_id": config.id, "airframe": config.model, "flight_model": "light"}
+            if self.mavlink is not None and self.mavlink.flies(config.id):
+                if not self._bring_up(config.id, spawn, request):
+                    return False
+            else:
+                answer = spawn(**request)
+                if not answer.success:
+                    rospy.logerr(f"spawn_agents: UAV {config.id}: {answer.message}")
+                    return False
+                self.spawned.append(config.id)
             self._start_manager(config.id)
         for config in agents:  # each manager is ready when its action servers answer
             self.clients.get(config.id, "take_off")
         self._wait_for_the_bag()
         return True
 
+    def _bring_up(self, uav_id: int, spawn, request: dict) -> bool:
+        """Start the bridge of a hil or real UAV (its stand-in first, when it has one); False if it is not there."""
+        def spawn_stand_in(local_port: int, remote_port: int) -> None:
+            answer = spawn(interface="mavlink", mavlink_local_port=local_port, mavlink_remote_port=remote_port,
+                           **request)
+            if not answer.success:
+                raise MavlinkUavError(f"UAV {uav_id}: magna_sim refused its PX4-like stand-in: {answer.message}")
+            self.spawned.append(uav_id)
+
+        try:
+            with self.sim_pause.time_needed():  # a stand-in's autopilot runs on simulated time
+                self.mavlink.bring_up(uav_id, spawn_stand_in)
+        except MavlinkUavError as error:
+            self.setup_errors.append(str(error))
+            rospy.logerr(f"spawn_agents: {error}")
+            return False
+        return True
+
+    def stop_bridges(self) -> None:
+        if self.mavlink is not None:
+            self.mavlink.stop()
+
     def _wait_for_the_bag(self) -> None:
         """Let the bag connect to the new UAVs' topics while time stands still, so it misses no take-off."""
         if self.bag is None:
             return
-        topics = [f"/uav_{i}/ual/{name}" for i in self.spawned for name in ("pose", "velocity")]
+        flying = [c.id for c in self.mission.agents]  # spawned in magna_sim or reached through a bridge
+        topics = [f"/uav_{i}/ual/{name}" for i in flying for name in ("pose", "velocity")]
         missing = self.bag.wait_listening(topics, timeout=BAG_WAIT)
         if missing:
             rospy.logwarn(f"the bag is not recording {', '.join(missing)} after {BAG_WAIT:.0f} s; it will miss "
@@ -347,6 +385,7 @@ class GroundStation:
                                               rospy.get_param("~manager_output", "log"),
                                               float(rospy.get_param("~button_timeout", 0.0)), self.bag)
         self._start_utm()
+        self._load_fleet()
         self.machine = build_machine(self.mission, RosStateFactory(self.services))
         self.introspection = IntrospectionServer("mission", self.machine)
         self.statuses: dict[int, dict] = {c.id: {} for c in self.mission.agents}
@@ -364,6 +403,40 @@ class GroundStation:
             rospy.Service("/magna/gs/stop", Trigger, self._on_stop),
             rospy.Service("/magna/gs/continue", Trigger, self._on_continue),
         ]
+
+    def _load_fleet(self) -> None:
+        """The fleet of the hil and real UAVs; a missing or unfitting fleet stops us here (exit 2)."""
+        modes = {c.id: c.mode for c in self.mission.agents}
+        flown = mavlink_uavs(modes)
+        fleet_file = rospy.get_param("~fleet_file", "") or self.hyper.get("fleet", "")
+        if not flown:
+            if fleet_file:
+                rospy.logwarn(f"{fleet_file}: not used: every UAV of {self.mission_file.name} is sitl")
+            return
+        if not fleet_file:
+            raise MissionError(f"{self.mission_file}: Agents_Config: UAVs {flown} are hil or real; say where their "
+                               f"autopilots are in a fleet file: magna run --fleet FILE (or _fleet_file:=FILE), "
+                               f"see magna_mavlink's README, 'The fleet file'")
+        try:
+            fleet = load_fleet(Path(fleet_file).expanduser())
+        except FleetError as error:
+            raise MissionError(str(error)) from None
+        problems = check_against_mission(fleet, modes)
+        if problems:
+            raise MissionError("; ".join(problems))
+        origin, where = resolve_origin(fleet, rospy.get_param("/magna/world/origin_geo", None))
+        rospy.loginfo(f"MAVLink UAVs {flown} from {fleet.source}; map origin {origin} ({where})")
+        mavlink = MavlinkUavs(fleet, modes, origin, rospy.get_param("~manager_output", "log"))
+        mavlink.on_link_lost = self._on_link_lost
+        self.services.mavlink = mavlink
+
+    def _on_link_lost(self, uav_id: int, text: str) -> None:
+        """A bridge lost its vehicle in flight: a critical event for every UAV, so the mission takes its safety
+        branch (the lost UAV's own autopilot holds or lands by its failsafe)."""
+        rospy.logerr(f"UAV {uav_id}: MAVLink link lost: {text}")
+        with self.lock:
+            self.critical_events.append((uav_id, "link_lost"))
+        self.critical.publish(String(f"UAV {uav_id} MAVLink link lost: {text}"))
 
     def _start_utm(self) -> None:
         """Start the UTM when the run names a plan or the mission flies UTM plans; a bad plan stops us here."""
@@ -482,7 +555,8 @@ class GroundStation:
         if self.data_dir:
             steps.append(("copying the mission", lambda: write_atomically(
                 self.data_dir / "mission.json", lambda f: f.write(self.mission_file.read_text()), overwrite=True)))
-        steps += [("stopping the UAV managers", services.stop_managers), ("deleting the UAVs", services.delete_uavs),
+        steps += [("stopping the UAV managers", services.stop_managers),
+                  ("stopping the MAVLink bridges", services.stop_bridges), ("deleting the UAVs", services.delete_uavs),
                   ("deleting the world", services.delete_world), ("stopping the UTM", services.stop_utm),
                   ("closing the bag", self._close_bag)]
         for what, step in steps:  # every step runs, and the Master hears of the end whatever fails
@@ -495,7 +569,9 @@ class GroundStation:
             # one report per UAV per contact: two UAVs touching once count 2
             collisions = sum(1 for _, event in self.critical_events if event == "collision")
             events = list(self.critical_events)
-        success = outcome in SUCCESS_OUTCOMES and not events
+        success = outcome in SUCCESS_OUTCOMES and not events and not services.setup_errors
+        if services.setup_errors:
+            message += "; could not start: " + "; ".join(services.setup_errors)
         if events:
             message += "; critical events: " + ", ".join(f"UAV {i} {e}" for i, e in events)
         self._report(success, outcome, message, duration, collisions, wall)

@@ -63,7 +63,7 @@ DEFAULT_LAUNCH_COMMAND: tuple[str, ...] = (
 )
 PLACEHOLDERS = ("mission_file", "world", "subworld", "worlds_path", "data_dir", "rtf", "seed", "bag", "save_data",
                 "output", "mission", "submission", "n_simulation", "button_timeout", "rviz", "utm_plan",
-                "battery_floor")
+                "battery_floor", "fleet")
 
 
 class BatchError(RuntimeError):
@@ -305,6 +305,7 @@ class BatchConfig:
     rviz: bool = False  # rviz on the display for each simulation (magna_viz rviz.launch); needs DISPLAY
     utm_plan: Path | None = None  # a UTM flight-plan file (magna_gs.utm format) the UTM node issues
     battery_floor: float = 0.0  # % of charge simulated batteries keep (PX4 SITL's SIM_BAT_MIN_PCT); 0: run empty
+    fleet: Path | None = None  # the fleet file of the mission's hil and real UAVs (magna_mavlink.fleet)
 
     @property
     def key(self) -> storage.StorageKey:
@@ -410,6 +411,7 @@ def launch_command(config: BatchConfig, m: int, data_dir: Path | None, plan: sto
         "save_data": _bool(plan.save), "output": config.output, "mission": i.mission, "submission": i.submission,
         "n_simulation": str(m), "button_timeout": f"{config.button_timeout:g}", "rviz": _bool(config.rviz),
         "utm_plan": str(config.utm_plan) if config.utm_plan else "", "battery_floor": f"{config.battery_floor:g}",
+        "fleet": str(config.fleet) if config.fleet else "",
     }
     argv = []
     for arg in config.launch_command:
@@ -422,6 +424,8 @@ def launch_command(config: BatchConfig, m: int, data_dir: Path | None, plan: sto
         argv.append(f"utm_plan:={config.utm_plan}")
     if config.battery_floor and config.uses_default_launch():
         argv.append(f"battery_floor:={config.battery_floor:g}")
+    if config.fleet and config.uses_default_launch():
+        argv.append(f"fleet:={config.fleet}")
     return argv
 
 

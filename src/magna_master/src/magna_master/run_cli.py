@@ -2,7 +2,8 @@
 
     magna run --world Gym/1Obs_Central_Cylinder --mission Gym/2UAVs_2paths_Central_Cylinder --n-iter 5 \\
         [--name NAME] [--dataset N] [--rtf max|FACTOR] [--seed S] [--no-bag] [--rviz] [--search-path DIR ...] \\
-        [--data-root DIR] [--append|--overwrite|--skip-save] [--time-limit SECONDS] [--launch-command CMD] [--strict]
+        [--data-root DIR] [--append|--overwrite|--skip-save] [--time-limit SECONDS] [--launch-command CMD] [--strict] \\
+        [--fleet FLEET.yaml]
 
 Exit status: 0 when every simulation ran to a mission outcome (a failed mission is data, not an
 error), 1 when one or more crashed or could not start, 2 for bad input (nothing started or
@@ -85,6 +86,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     policy.add_argument("--skip-save", action="store_true",
                         help="save nothing (no folders, no summary, no report); the table is printed at the end")
     add_deprecated_flag(parser, "--no-data", "skip_save", "--skip-save")
+    parser.add_argument("--fleet", type=Path, metavar="FILE",
+                        help="the fleet file (YAML) of the mission's hil and real UAVs: where each autopilot is "
+                             "(MAVLink URL), its arming policy, or a simulated PX4-like stand-in; needed when the "
+                             "mission has hil or real UAVs, which then run at real time (--rtf 1). Format: "
+                             "src/magna_mavlink/README.md, 'The fleet file'")
     parser.add_argument("--utm-plan", type=Path, metavar="FILE",
                         help="a UTM flight-plan file (JSON) for missions that follow paths 'from utm'; the UTM "
                              "node issues its plans at their simulated times (format: src/magna_gs/README.md)")
@@ -144,13 +150,50 @@ def build_config(args):
         except UtmPlanError as err:
             raise BatchError(f"--utm-plan: {' '.join(str(err).split())}") from None
         utm_plan = args.utm_plan.expanduser().resolve()
+    fleet, rtf = check_fleet(inputs.mission_file, args.fleet, args.rtf)
     return BatchConfig(inputs=inputs, n_iter=args.n_iter, utm_plan=utm_plan, battery_floor=args.battery_floor,
-                       name=args.name, n_dataset=args.dataset,
-                       rtf=args.rtf,
+                       name=args.name, n_dataset=args.dataset, fleet=fleet,
+                       rtf=rtf,
                        seed=args.seed, bag=not args.no_bag, save_data=not args.skip_save,
                        data_root=args.data_root, policy=args.policy,
                        time_limit=args.time_limit or None, button_timeout=args.button_timeout,
                        launch_command=command, rviz=args.rviz)
+
+
+def check_fleet(mission_file: Path, fleet_file: Path | None, rtf: str) -> tuple[Path | None, str]:
+    """The fleet file and the real-time factor for this mission; BatchError when they do not fit it.
+
+    A mission with hil or real UAVs needs a fleet file and runs at real time: their autopilots, links and
+    timeouts live in wall time. The default --rtf (max) then becomes 1; any other factor is refused."""
+    from magna_gs.mission.loader import load_mission
+    from magna_master.batch import BatchError, parse_rtf
+    from magna_mavlink.fleet import FleetError, check_against_mission, load_fleet, mavlink_uavs
+
+    modes = {agent.id: agent.mode for agent in load_mission(mission_file).mission.agents}
+    flown = mavlink_uavs(modes)
+    if not flown:
+        if fleet_file is not None:
+            raise BatchError(f"--fleet {fleet_file}: every UAV of {mission_file.name} is sitl, so there is nothing "
+                             f"to reach over MAVLink; drop --fleet, or make UAVs hil or real in the mission")
+        return None, rtf
+    if fleet_file is None:
+        raise BatchError(f"{mission_file}: UAVs {flown} are hil or real; give --fleet FILE saying where their "
+                         f"autopilots are (src/magna_mavlink/README.md, 'The fleet file')")
+    try:
+        fleet = load_fleet(fleet_file.expanduser())
+    except FleetError as err:
+        raise BatchError(f"--fleet: {err}") from None
+    problems = check_against_mission(fleet, modes)
+    if problems:
+        raise BatchError(f"--fleet: {problems[0]}" + (f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""))
+    factor = parse_rtf(rtf)
+    if factor == "max":
+        print(f"magna run: UAVs {flown} fly over MAVLink: the simulation runs at real time (--rtf 1)", flush=True)
+        factor = "1"
+    elif float(factor) != 1.0:
+        raise BatchError(f"--rtf {rtf}: UAVs {flown} are hil or real and fly in real time; give --rtf 1 "
+                         f"(or leave it out)")
+    return fleet_file.expanduser().resolve(), factor
 
 
 def run(args) -> int:
