@@ -21,6 +21,7 @@ class SetPoint:
     kind: str  # "position" or "velocity"
     vector: np.ndarray  # ENU: metres, or metres per second
     yaw: float | None = None  # ENU heading to hold (positions), None to keep the current one
+    yaw_rate: float = 0.0  # ENU yaw rate (velocities), rad/s, anticlockwise
 
 
 class SetPointStream:
@@ -35,19 +36,23 @@ class SetPointStream:
         """Fly to and hold `position` (go_to_waypoint, set_pose, take-off target, a velocity's end)."""
         self._latest = SetPoint("position", np.asarray(position, dtype=float), yaw)
 
-    def velocity(self, velocity, now: float) -> None:
-        """Fly at `velocity` until it is renewed or VELOCITY_TIMEOUT passes."""
-        self._latest = SetPoint("velocity", np.asarray(velocity, dtype=float))
+    def velocity(self, velocity, now: float, yaw_rate: float = 0.0) -> None:
+        """Fly at `velocity` (turning at `yaw_rate`) until it is renewed or VELOCITY_TIMEOUT passes."""
+        self._latest = SetPoint("velocity", np.asarray(velocity, dtype=float), yaw_rate=float(yaw_rate))
         self._velocity_time = now
 
     def clear(self) -> None:
         """Nothing to stream (landed, or the pilot has the vehicle)."""
         self._latest = None
 
-    def at(self, now: float, position) -> SetPoint | None:
-        """The set-point to send now; `position` is the vehicle's, used when a velocity has expired."""
+    @property
+    def latest(self) -> SetPoint | None:
+        return self._latest
+
+    def at(self, now: float, position, yaw: float | None = None) -> SetPoint | None:
+        """The set-point to send now; `position` (and `yaw`) are the vehicle's, held when a velocity has expired."""
         latest = self._latest
         if latest is not None and latest.kind == "velocity" and now - self._velocity_time > self.velocity_timeout:
-            self.hold(position)
+            self.hold(position, yaw)
             latest = self._latest
         return latest
