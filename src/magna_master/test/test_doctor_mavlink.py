@@ -66,7 +66,7 @@ def test_a_failing_line_among_passing_ones_exits_1():
 def test_a_bad_url_or_timeout_is_a_usage_error():
     out = doctor("--mavlink", "udpin:14540")
     assert out.returncode == 2 and out.stdout == ""
-    assert out.stderr.startswith("magna doctor: --mavlink 'udpin:14540': after 'udpin:' give HOST:PORT; use ")
+    assert out.stderr.startswith("magna doctor: --mavlink udpin:14540: expected SCHEME:HOST:PORT; accepted: ")
     out = doctor("--mavlink", "udpin:0.0.0.0:14540", "--timeout", "0")
     assert out.returncode == 2 and "--timeout 0: give a positive number of seconds" in out.stderr
     out = doctor("--timeout", "3")

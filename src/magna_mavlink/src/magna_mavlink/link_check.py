@@ -8,12 +8,12 @@ asking) until it has them or the timeout passes. It returns one LinkCheck per li
 autopilot, system id, flight mode, armed, position valid, home; each failure says how to fix it.
 
 `magna doctor --mavlink URL` prints these lines. The connection here is deliberately small (pymavlink's
-mavutil, nothing kept open); the UAL's own link lives in ual_mavlink.
+mavutil, nothing kept open): magna_mavlink.link.MavlinkLink serves one known system id and reconnects, where a
+check must hear whichever vehicle is there and fail at once. URLs follow magna_mavlink.link.parse_url.
 """
 from __future__ import annotations
 
 import os
-import re
 import time
 from dataclasses import dataclass, field
 
@@ -27,8 +27,6 @@ MAV_SYS_STATUS_SENSOR_GPS, MAV_SYS_STATUS_AHRS = 32, 2097152
 MAV_RESULTS = {0: "ACCEPTED", 1: "TEMPORARILY_REJECTED", 2: "DENIED", 3: "UNSUPPORTED", 4: "FAILED",
                5: "IN_PROGRESS", 6: "CANCELLED"}
 ASK_EVERY = 1.0  # s between our heartbeats and requests
-URL_FORMS = ("udpin:HOST:PORT (listen, e.g. udpin:0.0.0.0:14540), udpout:HOST:PORT (send first, e.g. "
-             "udpout:127.0.0.1:14580), tcp:HOST:PORT, or a serial device DEVICE[,BAUD] (e.g. /dev/ttyACM0,57600)")
 CHECKS = ("heartbeat", "autopilot", "system id", "flight mode", "armed", "position valid", "home")
 
 
@@ -55,7 +53,7 @@ class LinkCheck:
 @dataclass(frozen=True)
 class LinkUrl:
     text: str
-    kind: str  # udpin, udpout, tcp, serial
+    kind: str  # udpin, udpout, tcp, tcpin, serial
     host: str = ""
     port: int = 0
     device: str = ""
@@ -75,38 +73,28 @@ class LinkUrl:
                     "on 14580+i); a vehicle that only sends to a fixed port needs udpin:0.0.0.0:PORT instead")
         if self.kind == "tcp":
             return f"{self.host}:{self.port} accepted the connection but sent no MAVLink: is it the vehicle's port?"
+        if self.kind == "tcpin":
+            return f"is the vehicle (or its bridge) connecting to this machine's TCP port {self.port}?"
         return (f"check the cable, that MAVLink runs on {self.device} and its baud rate (given {self.baud}; "
                 "telemetry radios use 57600, USB 115200)")
 
 
-_HOST_PORT = re.compile(r"^(?P<host>[A-Za-z0-9_.\-]+):(?P<port>[^:]*)$")
-
-
 def parse_url(text: str) -> LinkUrl:
-    """A pymavlink URL as ual_mavlink takes it; BadUrl names the text and the forms that work."""
-    text = text.strip()
-    scheme, sep, rest = text.partition(":")
-    if sep and scheme in ("udpin", "udpout", "udp", "tcp"):
-        match = _HOST_PORT.match(rest)
-        if not match:
-            raise BadUrl(f"{text!r}: after '{scheme}:' give HOST:PORT; use {URL_FORMS}")
-        try:
-            port = int(match["port"])
-        except ValueError:
-            raise BadUrl(f"{text!r}: the port {match['port']!r} is not a number; use {URL_FORMS}") from None
-        if not 1 <= port <= 65535:
-            raise BadUrl(f"{text!r}: the port {port} is not in 1..65535")
+    """A URL as ual_mavlink takes it (magna_mavlink.link.parse_url: one rule for both), sorted by the kind of
+    link for the fixes; BadUrl names the text and the forms that work."""
+    from magna_mavlink.link import LinkError
+    from magna_mavlink.link import parse_url as parse_link_url
+
+    try:
+        endpoint = parse_link_url(text)
+    except LinkError as error:
+        raise BadUrl(str(error)) from None
+    scheme, sep, rest = endpoint.device.partition(":")
+    if sep and scheme in ("udpin", "udpout", "udp", "tcp", "tcpin"):
+        host, _, port = rest.rpartition(":")
         kind = "udpin" if scheme == "udp" else scheme  # pymavlink's plain udp: listens
-        return LinkUrl(text, kind, match["host"], port)
-    if text.startswith("/") or text.upper().startswith("COM"):
-        device, _, baud = text.partition(",")
-        try:
-            rate = int(baud) if baud else 57600
-        except ValueError:
-            raise BadUrl(f"{text!r}: the baud rate {baud!r} is not a number; use DEVICE,BAUD e.g. /dev/ttyACM0,57600"
-                         ) from None
-        return LinkUrl(text, "serial", device=device, baud=rate)
-    raise BadUrl(f"{text!r} is not a MAVLink URL; use {URL_FORMS}")
+        return LinkUrl(text.strip(), kind, host, int(port))
+    return LinkUrl(text.strip(), "serial", device=endpoint.device, baud=endpoint.baud)
 
 
 @dataclass
@@ -280,6 +268,8 @@ def _connection_fix(url: LinkUrl) -> str:
     if url.kind == "tcp":
         return (f"is the vehicle listening for TCP at {url.host}:{url.port}? (ArduPilot SITL serves "
                 "tcp:127.0.0.1:5760)")
+    if url.kind == "tcpin":
+        return f"another program may hold TCP port {url.port}: stop it or choose another port"
     return ("plug the autopilot in, look for it with 'ls /dev/ttyACM* /dev/ttyUSB*', and make sure you may open it "
             "(group dialout)")
 
