@@ -26,6 +26,9 @@ from tf2_msgs.msg import TFMessage
 
 from .command_queue import CommandQueue
 from .depth_camera import DepthCamera
+from .mavlink_endpoint import EndpointError, MavlinkEndpoint
+from .mavlink_telemetry import PX4_SITL_HOME
+from .mavlink_vehicle import MavlinkVehicle
 from .pacing import Hold, Lockstep, Pacer, parse_real_time_factor
 from .ros_ual import MAP_FRAME, UalServer, quaternion_yaw
 from .streams import stream_publisher
@@ -74,6 +77,13 @@ Private parameters (defaults):
   ~stuck_time (10)       s of sim time a target may come no nearer before a blocking take_off or
                          go_to_waypoint fails as not reached (0: wait for ever, as a real UAL)
   ~ground_impact_speed (1.0)   ground contacts faster than this (m/s) are collisions
+  ~mavlink (false)       the UAVs spawned at start also fly as PX4-like MAVLink vehicles (interface
+                         "ual+mavlink"); /magna/sim/spawn_model chooses per UAV (interface "ual",
+                         "mavlink" or "ual+mavlink")
+  ~mavlink_local_port_base (14580)    UAV i binds UDP base+i-1 and answers whoever sends to it
+                                      (a ground station: udpout:127.0.0.1:14580)
+  ~mavlink_remote_port_base (14540)   UAV i also sends to 127.0.0.1:base+i-1, where an offboard
+                                      API listens (MAVSDK udpin://0.0.0.0:14540), as PX4 SITL
 
 Example: roslaunch magna_sim sim.launch uavs:=3 model:=iris flight_model:=light rtf:=1.0
 """
@@ -110,6 +120,9 @@ class NodeSettings:
     lockstep_lead: float = 0.15
     lockstep_timeout: float = 1.0
     battery_floor: float = 0.0  # percent
+    mavlink: bool = False  # UAVs spawned at start also expose a PX4-like MAVLink vehicle
+    mavlink_local_port_base: int = 14580  # PX4 SITL's ports: UAV i binds base + i - 1 ...
+    mavlink_remote_port_base: int = 14540  # ... and sends to 127.0.0.1:base + i - 1
 
     @classmethod
     def from_params(cls) -> NodeSettings:
@@ -146,7 +159,13 @@ class NodeSettings:
             lockstep=_as_bool("~lockstep", rospy.get_param("~lockstep", True)),
             lockstep_lead=float(rospy.get_param("~lockstep_lead", 0.15)),
             lockstep_timeout=float(rospy.get_param("~lockstep_timeout", 1.0)),
-            battery_floor=float(rospy.get_param("~battery_floor", 0.0)))
+            battery_floor=float(rospy.get_param("~battery_floor", 0.0)),
+            mavlink=_as_bool("~mavlink", rospy.get_param("~mavlink", False)),
+            mavlink_local_port_base=int(rospy.get_param("~mavlink_local_port_base", 14580)),
+            mavlink_remote_port_base=int(rospy.get_param("~mavlink_remote_port_base", 14540)))
+        for name in ("mavlink_local_port_base", "mavlink_remote_port_base"):
+            if not 1 <= getattr(settings, name) <= 65535:
+                raise ValueError(f"~{name}: {getattr(settings, name)} must be a UDP port (1 to 65535)")
         if not (math.isfinite(settings.battery_floor) and 0.0 <= settings.battery_floor < 100.0):
             raise ValueError(f"~battery_floor: {settings.battery_floor} must be a percentage from 0 to below 100")
         for name in ("physics_rate", "pub_rate", "clock_rate", "battery_rate"):
@@ -159,6 +178,9 @@ class NodeSettings:
         if settings.uavs < 0:
             raise ValueError(f"~uavs: {settings.uavs} must be 0 or more")
         return settings
+
+
+INTERFACES = ("ual", "mavlink", "ual+mavlink")
 
 
 def _as_bool(name: str, value) -> bool:
@@ -235,17 +257,27 @@ class SimNode:
         self.lockstep = Lockstep(settings.lockstep_lead, settings.lockstep_timeout) if settings.lockstep else None
         self._step_heard = threading.Event()
         self._step_subs: dict[int, rospy.Subscriber] = {}
+        self.mavlink: dict[int, tuple[MavlinkEndpoint, MavlinkVehicle]] = {}  # UAVs that speak MAVLink
+        self._paused_heartbeat = 0.0  # wall time of the last HEARTBEAT sent while paused
+        interface = "ual+mavlink" if settings.mavlink else "ual"
         for i, position in enumerate(initial_positions(settings.uavs, settings.spacing), start=1):
-            self.spawn_uav(f"uav_{i}", i, settings.model, settings.flight_model, position, 0.0)
+            self.spawn_uav(f"uav_{i}", i, settings.model, settings.flight_model, position, 0.0, interface=interface)
         self.hold = Hold(settings.start_paused)
         self._services = [rospy.Service("/magna/sim/spawn_model", SpawnModel, self._on_spawn),
                           rospy.Service("/magna/sim/delete_model", DeleteModel, self._on_delete),
                           rospy.Service("/magna/sim/pause", SetBool, self._on_pause)]
 
     # --- models (simulation thread) --------------------------------------------------------------------------
-    def spawn_uav(self, name, uav_id, airframe, flight_model, position, yaw, rgba=(0.2, 0.2, 0.25, 1.0)):
+    def spawn_uav(self, name, uav_id, airframe, flight_model, position, yaw, rgba=(0.2, 0.2, 0.25, 1.0),
+                  interface="ual", mavlink_local_port=0, mavlink_remote_port=0):
+        """interface: "ual" (a UAL server), "mavlink" (only the PX4-like MAVLink vehicle: the stand-in for a
+        hardware-in-the-loop autopilot, not in /ual_ids) or "ual+mavlink" (both)."""
+        interface = interface or "ual"
+        if interface not in INTERFACES:
+            raise SpawnError(f"interface: '{interface}' must be one of {', '.join(INTERFACES)} (or empty for ual)")
+        with_ual, with_mavlink = interface != "mavlink", interface != "ual"
         ids = list(rospy.get_param("/ual_ids", []))
-        if uav_id in ids and uav_id not in self.servers:
+        if with_ual and uav_id in ids and uav_id not in self.servers:
             if _ual_served(uav_id):
                 raise SpawnError(f"uav_id: {uav_id} is already in /ual_ids (another UAL server has it); pick a free id")
             # Listed by a UAL server that ended without cleaning up (killed): nobody serves it, take it over.
@@ -254,11 +286,27 @@ class SimNode:
         if uav_id < 1:
             raise SpawnError(f"uav_id: {uav_id} must be 1 or more (UAL namespaces are /uav_{{id}})")
         vehicle = self.world.spawn_uav(name, uav_id, airframe, flight_model, position, yaw, rgba)
-        self.servers[uav_id] = UalServer(uav_id, self.world.ual[uav_id], self.queue, self.settings.map_origin_geo)
-        self._battery_pubs[uav_id] = rospy.Publisher(f"/uav_{uav_id}/mavros/battery", BatteryState, queue_size=1)
+        if with_mavlink:
+            try:
+                if vehicle.airframe.is_fixed_wing:
+                    raise SpawnError(f"interface: '{interface}' flies a multirotor (PX4 QUADROTOR); '{airframe}' is "
+                                     "a fixed wing: use interface 'ual'")
+                endpoint = self._open_mavlink(uav_id, mavlink_local_port, mavlink_remote_port)
+            except SpawnError:
+                self.world.delete(name)
+                raise
+            self.mavlink[uav_id] = (endpoint, self._mavlink_vehicle(vehicle, with_ual))
+            rospy.loginfo(f"magna_sim: UAV {uav_id} speaks MAVLink (system {uav_id}) on UDP {endpoint.local_port}, "
+                          f"sending to 127.0.0.1:{endpoint.remote[1]}")
         if self.lockstep is not None:
             self._step_subs[uav_id] = rospy.Subscriber(f"/magna/uav_{uav_id}/control_step", Float64,
                                                        self._on_control_step, uav_id, queue_size=1, tcp_nodelay=True)
+        if not with_ual:  # a stand-in for an autopilot outside the simulator: no UAL, battery or camera topics
+            rospy.loginfo(f"magna_sim: spawned {name} (MAVLink only, {airframe}, {flight_model}) "
+                          f"at {np.round(vehicle.position, 2).tolist()}")
+            return vehicle
+        self.servers[uav_id] = UalServer(uav_id, self.world.ual[uav_id], self.queue, self.settings.map_origin_geo)
+        self._battery_pubs[uav_id] = rospy.Publisher(f"/uav_{uav_id}/mavros/battery", BatteryState, queue_size=1)
         if self._camera is not None:
             base = f"/uav_{uav_id}/camera/depth/"
             self.cameras[uav_id] = (rospy.Publisher(base + "image_raw", Image, queue_size=1),
@@ -268,6 +316,26 @@ class SimNode:
                       f"at {np.round(vehicle.position, 2).tolist()}")
         return vehicle
 
+    def _open_mavlink(self, uav_id: int, local_port: int, remote_port: int) -> MavlinkEndpoint:
+        """Bind the UAV's UDP port (PX4 SITL's numbering unless the request names ports)."""
+        local = local_port or self.settings.mavlink_local_port_base + uav_id - 1
+        remote = remote_port or self.settings.mavlink_remote_port_base + uav_id - 1
+        for field, port in (("mavlink_local_port", local), ("mavlink_remote_port", remote)):
+            if not 1 <= port <= 65535:
+                raise SpawnError(f"{field}: {port} (base + uav_id - 1) is not a UDP port; give the port in the request")
+        if uav_id > 255:
+            raise SpawnError(f"uav_id: {uav_id} is no MAVLink system id (1 to 255); use interface 'ual'")
+        try:
+            return MavlinkEndpoint(uav_id, local, remote)
+        except EndpointError as err:
+            raise SpawnError(str(err)) from None
+
+    def _mavlink_vehicle(self, vehicle, with_ual: bool) -> MavlinkVehicle:
+        battery = self.world.batteries[vehicle.uav_id]
+        return MavlinkVehicle(vehicle, vehicle.uav_id, self.settings.map_origin_geo or PX4_SITL_HOME, self.world.time,
+                              ual=self.world.ual[vehicle.uav_id] if with_ual else None,
+                              battery=lambda: (battery.voltage, battery.percentage))
+
     def delete(self, name: str) -> str:
         uav_id = next((i for i, v in self.world.vehicles.items() if v.name == name), None)
         kind = self.world.delete(name)
@@ -276,9 +344,13 @@ class SimNode:
         return kind
 
     def _forget_uav(self, uav_id: int) -> None:
+        if uav_id in self.mavlink:
+            self.mavlink.pop(uav_id)[0].close()
         if uav_id in self._step_subs:
             self._step_subs.pop(uav_id).unregister()
             self.lockstep.forget(uav_id)
+        if uav_id not in self.servers:
+            return  # MAVLink only: it had no UAL server and was never in /ual_ids
         self.servers.pop(uav_id).shutdown()
         self._battery_pubs.pop(uav_id).unregister()
         for publisher in self.cameras.pop(uav_id, ()):
@@ -295,8 +367,9 @@ class SimNode:
             if req.kind == "uav":
                 self.spawn_uav(req.name, int(req.uav_id), req.airframe or self.settings.model,
                                req.flight_model or self.settings.flight_model, position,
-                               quaternion_yaw(pose.orientation), rgba)
-                return f"spawned UAV '{req.name}' as /uav_{req.uav_id}/ual"
+                               quaternion_yaw(pose.orientation), rgba, req.interface, req.mavlink_local_port,
+                               req.mavlink_remote_port)
+                return f"spawned UAV '{req.name}' as {self._served_as(int(req.uav_id))}"
             if req.kind == "obstacle":
                 q = pose.orientation
                 orientation = [q.x, q.y, q.z, q.w] if (q.x, q.y, q.z, q.w) != (0, 0, 0, 0) else [0, 0, 0, 1]
@@ -307,6 +380,15 @@ class SimNode:
             raise SpawnError(f"kind: '{req.kind}' must be 'uav' or 'obstacle'")
 
         return SpawnModelResponse(*self._answer("spawn_model", spawn))
+
+    def _served_as(self, uav_id: int) -> str:
+        """How clients reach a UAV, for the spawn service's answer."""
+        ways = [f"/uav_{uav_id}/ual"] if uav_id in self.servers else []
+        if uav_id in self.mavlink:
+            endpoint = self.mavlink[uav_id][0]
+            ways.append(f"MAVLink system {uav_id} on UDP {endpoint.local_port} "
+                        f"(sending to 127.0.0.1:{endpoint.remote[1]})")
+        return " and ".join(ways)
 
     def _on_delete(self, req):
         return DeleteModelResponse(*self._answer("delete_model", lambda: f"deleted {self.delete(req.name)} "
@@ -343,6 +425,8 @@ class SimNode:
         try:
             while not rospy.is_shutdown():
                 self.queue.run_pending()
+                if self.mavlink:
+                    self._serve_mavlink()
                 if self.hold.paused:
                     self._stand_still(clock_msg, set_own_time)
                     continue
@@ -354,6 +438,8 @@ class SimNode:
                 contacts = self.world.step()
                 self.queue.check_waiters()
                 now = self.world.time
+                if self.mavlink:
+                    self._tick_mavlink(now)
                 stamp = rospy.Time.from_sec(now)
                 if clock.due(now):
                     clock_msg.clock = stamp
@@ -397,13 +483,35 @@ class SimNode:
             set_own_time(stamp)
         self._publish_ual(stamp, tf=False)  # tf listeners complain about repeated stamps
         deadline = time.monotonic() + 1.0 / self.settings.pub_rate
+        if self.mavlink and time.monotonic() - self._paused_heartbeat >= 1.0:
+            self._paused_heartbeat = time.monotonic()  # clients drop a vehicle silent for a few seconds
+            for endpoint, vehicle in self.mavlink.values():
+                endpoint.send([vehicle.heartbeat()])
         while self.hold.paused and not rospy.is_shutdown() and time.monotonic() < deadline:
             self.queue.run_pending()
+            if self.mavlink:
+                self._serve_mavlink()
             time.sleep(0.002)
+
+    def _serve_mavlink(self) -> None:
+        """Hand what MAVLink clients sent to their vehicles and send the answers (never blocks)."""
+        now = self.world.time
+        for endpoint, vehicle in self.mavlink.values():
+            messages = endpoint.receive()
+            if messages:
+                answers = []
+                for message in messages:
+                    answers.extend(vehicle.handle(message, now))
+                endpoint.send(answers)
+
+    def _tick_mavlink(self, now: float) -> None:
+        """After a physics step: each MAVLink vehicle flies its mode and sends the telemetry that is due."""
+        for endpoint, vehicle in self.mavlink.values():
+            endpoint.send(vehicle.tick(now))
 
     def shutdown(self) -> None:
         self.queue.stop("magna_sim is shutting down")
-        for uav_id in list(self.servers):
+        for uav_id in list(self.servers) + [i for i in self.mavlink if i not in self.servers]:
             try:
                 self._forget_uav(uav_id)
             except (ConnectionError, OSError):  # the master may already be gone
