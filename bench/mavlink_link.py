@@ -108,12 +108,13 @@ def gap_figures(arrivals: list[float], start: float, end: float) -> dict:
 
 # --- load --------------------------------------------------------------------------------------------------
 
-BURN = "while True:\n    pass\n"
+BURN = "import signal\nsignal.signal(signal.SIGINT, signal.SIG_DFL)\nwhile True:\n    pass\n"  # Ctrl-C ends it quietly
 
 
 def start_burners(master, count: int) -> list[subprocess.Popen]:
     """`count` processes that keep one core busy each, ended by end_burners (or with the master)."""
-    return [master.spawn([sys.executable, "-c", BURN], stdin=subprocess.DEVNULL) for _ in range(count)]
+    return [master.spawn([sys.executable, "-c", BURN], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                         stderr=subprocess.DEVNULL) for _ in range(count)]
 
 
 def end_burners(burners: list[subprocess.Popen]) -> None:
@@ -359,7 +360,9 @@ def print_figures(result: dict, args) -> None:
               f"load average {result.get('load', math.nan):.1f} on {os.cpu_count()} cores")
     states = result.get("states_after")
     if states:
-        print("UAL states after the busy span: " + ", ".join(f"UAV {k} {v}" for k, v in states.items()))
+        from magna_mavlink.ual_state import NAMES
+
+        print("UAL states after the busy span: " + ", ".join(f"UAV {k} {NAMES[v]}" for k, v in states.items()))
 
 
 def build_parser() -> argparse.ArgumentParser:
