@@ -396,7 +396,7 @@ class MavlinkVehicle:
             return self._arm()
         if not self.armed:
             return ACCEPTED
-        if not self.on_ground and int(command.param(2)) != FORCE:
+        if not self.on_ground and command.param(2) != FORCE:
             self._say(mavlink.MAV_SEVERITY_CRITICAL, "Disarming denied: not landed")
             return DENIED
         self.external = False
@@ -539,7 +539,7 @@ class MavlinkVehicle:
             position = position + frames.enu_to_ned(vehicle.position)
         elif frame != mavlink.MAV_FRAME_LOCAL_NED:
             return
-        self._set_point(frames.ned_to_enu(position), frames.ned_to_enu(velocity), msg)
+        self._set_point(_ned_to_enu(position), _ned_to_enu(velocity), msg)
 
     def _on_set_position_target_global_int(self, msg) -> None:
         if not self._for_me(msg.target_system, msg.target_component):
@@ -555,7 +555,7 @@ class MavlinkVehicle:
                 return
             position = self.telemetry.enu_of(msg.lat_int * 1e-7, msg.lon_int * 1e-7, altitude)
         velocity = _masked((msg.vx, msg.vy, msg.vz), msg.type_mask, IGNORE_VELOCITY)
-        self._set_point(position, frames.ned_to_enu(velocity), msg)
+        self._set_point(position, _ned_to_enu(velocity), msg)
 
     def _set_point(self, position: np.ndarray, velocity: np.ndarray, msg) -> None:
         if np.isnan(position).all() and np.isnan(velocity).all():
@@ -637,8 +637,15 @@ def _masked(values, type_mask: int, bits) -> np.ndarray:
     return np.array([math.nan if type_mask & bit else float(v) for v, bit in zip(values, bits, strict=True)])
 
 
+def _ned_to_enu(vector: np.ndarray) -> np.ndarray:
+    """frames.ned_to_enu by moving components, not by a matrix product: an unset (NaN) axis stays its own."""
+    return np.array([vector[1], vector[0], -vector[2]])
+
+
 def _turn(vector_ned: np.ndarray, heading: float) -> np.ndarray:
     """A vector given in the heading frame (x forward, y right, z down) in NED."""
     c, s = math.cos(heading), math.sin(heading)
     x, y, z = vector_ned
+    if math.isnan(x) and math.isnan(y):
+        return np.array([x, y, z])
     return np.array([c * x - s * y, s * x + c * y, z])
