@@ -3,6 +3,11 @@
 
 Runs in three_uavs.test against `sim.launch uavs:=3`; the UAVs end landed where
 they started, so the plain-client test that follows finds them as it expects.
+
+UalBehaviour holds the cases any UAL server must pass (state sequence, take-off, waypoints, the geo
+waypoint, set-point streams, the velocity timeout, land, home, refusals, /ual_ids); UalApi adds what
+only magna_sim has (clock, battery, spawning, collisions, tf). magna_mavlink's live test runs
+UalBehaviour against ual_mavlink in front of magna_sim's MAVLink vehicle (set `ids` in a subclass).
 """
 import math
 import sys
@@ -23,6 +28,8 @@ from uav_abstraction_layer.srv import GoToWaypoint, GoToWaypointGeo, Land, SetHo
 from magna_common.geo import enu_to_geodetic
 
 IDS = (1, 2, 3)
+# A MAVLink autopilot disarms on the ground by itself (PX4's COM_DISARM_*) until it is armed again.
+LANDED = (State.LANDED_ARMED, State.LANDED_DISARMED)
 
 
 def pose_at(x, y, z, yaw=0.0, frame="map"):
@@ -53,32 +60,29 @@ class Latest:
         self.all.append(msg)
 
 
-class UalApi(unittest.TestCase):
+class UalBehaviour(unittest.TestCase):
+    ids = IDS  # the UAVs flown: the first blocking, the others not
+
     @classmethod
     def setUpClass(cls):
-        cls.pose = {i: Latest(f"/uav_{i}/ual/pose", PoseStamped) for i in IDS}
-        cls.velocity = {i: Latest(f"/uav_{i}/ual/velocity", TwistStamped) for i in IDS}
-        cls.state = {i: Latest(f"/uav_{i}/ual/state", State) for i in IDS}
-        cls.battery = {i: Latest(f"/uav_{i}/mavros/battery", BatteryState) for i in IDS}
-        cls.collisions = Latest("/magna/sim/collisions", CollisionEvent)
-        cls.clock = Latest("/clock", Clock)
-        cls.set_pose = {i: rospy.Publisher(f"/uav_{i}/ual/set_pose", PoseStamped, queue_size=1) for i in IDS}
+        ids = cls.ids
+        cls.first, cls.others = ids[0], ids[1:]
+        cls.pose = {i: Latest(f"/uav_{i}/ual/pose", PoseStamped) for i in ids}
+        cls.velocity = {i: Latest(f"/uav_{i}/ual/velocity", TwistStamped) for i in ids}
+        cls.state = {i: Latest(f"/uav_{i}/ual/state", State) for i in ids}
+        cls.battery = {i: Latest(f"/uav_{i}/mavros/battery", BatteryState) for i in ids}
+        cls.set_pose = {i: rospy.Publisher(f"/uav_{i}/ual/set_pose", PoseStamped, queue_size=1) for i in ids}
         cls.set_velocity = {i: rospy.Publisher(f"/uav_{i}/ual/set_velocity", TwistStamped, queue_size=1)
-                            for i in IDS}
+                            for i in ids}
         cls.services = {}
-        for i in IDS:
+        for i in ids:
             for name, kind in (("take_off", TakeOff), ("land", Land), ("go_to_waypoint", GoToWaypoint),
                                ("go_to_waypoint_geo", GoToWaypointGeo), ("set_home", SetHome),
                                ("recover_from_manual", Empty)):
                 rospy.wait_for_service(f"/uav_{i}/ual/{name}", timeout=30)
                 cls.services[i, name] = rospy.ServiceProxy(f"/uav_{i}/ual/{name}", kind)
-        rospy.wait_for_service("/magna/sim/spawn_model", timeout=30)
-        cls.spawn = rospy.ServiceProxy("/magna/sim/spawn_model", SpawnModel)
-        cls.delete = rospy.ServiceProxy("/magna/sim/delete_model", DeleteModel)
-        cls.tf_buffer = tf2_ros.Buffer()
-        cls.tf_listener = tf2_ros.TransformListener(cls.tf_buffer)
-        wait(lambda: all(cls.state[i].msg and cls.state[i].msg.state == State.LANDED_ARMED for i in IDS),
-             "three LANDED_ARMED UAVs")
+        wait(lambda: all(cls.state[i].msg and cls.state[i].msg.state == State.LANDED_ARMED for i in ids),
+             f"{len(ids)} LANDED_ARMED UAVs")
 
     @staticmethod
     def settle():
@@ -97,23 +101,127 @@ class UalApi(unittest.TestCase):
             call()
         self.assertRegex(str(caught.exception), pattern)
 
-    def test_1_landed_side_by_side_with_ids_clock_and_battery(self):
-        self.assertEqual(sorted(rospy.get_param("/ual_ids")), list(IDS))
-        ys = [self.position(i)[1] for i in IDS]
+    def test_1_landed_side_by_side_with_ids_and_battery(self):
+        self.assertEqual(sorted(rospy.get_param("/ual_ids")), list(self.ids))
+        ys = [self.position(i)[1] for i in self.ids]
         self.assertEqual(ys, sorted(ys))
-        self.assertTrue(all(abs(self.position(i)[2]) < 0.01 for i in IDS))
+        self.assertTrue(all(abs(self.position(i)[2]) < 0.01 for i in self.ids))
+        wait(lambda: all(self.battery[i].msg for i in self.ids), "battery messages")
+        self.assertGreater(self.battery[self.first].msg.percentage, 0.9)
+        self.assertEqual(self.battery[self.first].msg.power_supply_technology,
+                         BatteryState.POWER_SUPPLY_TECHNOLOGY_LIPO)
+
+    def test_2_refusals(self):
+        first, last = self.first, self.ids[-1]
+        self.call_fails(lambda: self.services[first, "land"](blocking=True),
+                        f"land refused: UAV {first} is LANDED_(DIS)?ARMED; land needs FLYING_AUTO")
+        self.call_fails(lambda: self.services[last, "go_to_waypoint"](waypoint=pose_at(1, 1, 1), blocking=True),
+                        "go_to_waypoint refused")
+        self.call_fails(lambda: self.services[first, "take_off"](height=float("nan"), blocking=True), "height")
+
+    def test_3_take_off_blocking_and_not(self):
+        first, others = self.first, self.others
+        starts = {i: self.position(i) for i in self.ids}
+        self.services[first, "take_off"](height=2.0, blocking=True)
+        self.settle()
+        self.assertEqual(self.state_of(first), State.FLYING_AUTO)
+        self.assertAlmostEqual(self.position(first)[2], 2.0, delta=0.2)
+        for i in others:
+            self.services[i, "take_off"](height=2.0, blocking=False)
+        self.assertEqual({self.state_of(i) for i in others} - {State.TAKING_OFF, *LANDED}, set())
+        wait(lambda: all(self.state_of(i) == State.TAKING_OFF for i in others), "TAKING_OFF after take_off")
+        wait(lambda: all(self.state_of(i) == State.FLYING_AUTO for i in others), "FLYING_AUTO")
+        self.call_fails(lambda: self.services[first, "take_off"](height=1.0, blocking=True),
+                        f"take_off refused: UAV {first} is FLYING_AUTO")
+        for i in self.ids:
+            self.assertLess(math.dist(self.position(i)[:2], starts[i][:2]), 0.01)
+
+    def test_4_set_pose_set_velocity_and_bad_setpoints(self):
+        targets = {i: (1.5, self.position(i)[1], 2.5) for i in self.ids}
+        self.stream(lambda i: self.set_pose[i].publish(pose_at(*targets[i], yaw=math.pi / 2)), 6.0)
+        for i in self.ids:
+            self.assertLess(math.dist(self.position(i), targets[i]), 0.1)
+            q = self.pose[i].msg.pose.orientation
+            self.assertAlmostEqual(2 * math.atan2(q.z, q.w), math.pi / 2, delta=0.05)
+        before = {i: self.position(i) for i in self.ids}
+        twist = TwistStamped()
+        twist.header.frame_id = "map"
+        twist.twist.linear.y = 0.5
+        self.stream(lambda i: self.set_velocity[i].publish(twist), 2.0)
+        for i in self.ids:
+            self.assertAlmostEqual(self.velocity[i].msg.twist.linear.y, 0.5, delta=0.05)
+            self.assertAlmostEqual(self.position(i)[1] - before[i][1], 1.0, delta=0.3)
+        wait(lambda: all(abs(self.velocity[i].msg.twist.linear.y) < 0.02 for i in self.ids),
+             "the hover after set_velocity stops (velocity timeout)")
+        rospy.sleep(3.0)  # the hold position was taken while still moving: let it settle back
+        held = {i: self.position(i) for i in self.ids}
+        self.stream(lambda i: self.set_pose[i].publish(pose_at(float("nan"), 0, 2)), 1.0)
+        for i in self.ids:
+            self.assertLess(math.dist(self.position(i), held[i]), 0.05)
+
+    def test_6_geographic_waypoint_home_frame_and_manual_recovery(self):
+        first = self.first
+        origin = rospy.get_param("/magna_sim/map_origin_geo")
+        lat, lon, alt = enu_to_geodetic([1.0, -2.0, 2.0], origin)
+        self.services[first, "go_to_waypoint_geo"](waypoint=NavSatFix(latitude=lat, longitude=lon, altitude=alt),
+                                                   blocking=True)
+        self.settle()
+        self.assertLess(math.dist(self.position(first), (1.0, -2.0, 2.0)), 0.33)
+        self.call_fails(lambda: self.services[first, "go_to_waypoint_geo"](
+            waypoint=NavSatFix(latitude=float("nan"), longitude=lon, altitude=alt), blocking=True), "finite")
+        self.services[first, "set_home"](set_z=False)
+        home = self.position(first)
+        self.services[first, "go_to_waypoint"](waypoint=pose_at(1.0, 0.0, 1.0, frame=f"uav_{first}_home"),
+                                               blocking=True)
+        self.settle()
+        self.assertLess(math.dist(self.position(first), (home[0] + 1.0, home[1], 1.0)), 0.33)
+        self.call_fails(lambda: self.services[first, "go_to_waypoint"](waypoint=pose_at(0, 0, 1, frame="odom"),
+                                                                       blocking=True), "frame_id 'odom' is not known")
+        self.call_fails(lambda: self.services[first, "recover_from_manual"](), f"UAV {first} is FLYING_AUTO")
+
+    def test_7_go_to_and_land_where_they_started(self):
+        for i in self.ids:
+            y = (i - 2) * 2.0
+            self.services[i, "go_to_waypoint"](waypoint=pose_at(0.0, y, 1.5), blocking=True)
+            self.settle()
+            self.assertLess(math.dist(self.position(i), (0.0, y, 1.5)), 0.33)
+        self.services[self.first, "land"](blocking=True)
+        self.settle()
+        self.assertIn(self.state_of(self.first), LANDED)
+        for i in self.others:
+            self.services[i, "land"](blocking=False)
+        wait(lambda: all(self.state_of(i) in LANDED for i in self.ids), "all landed")
+        for i in self.ids:
+            self.assertLess(self.position(i)[2], 0.06)
+
+    def stream(self, publish, sim_seconds):
+        deadline = rospy.get_rostime() + rospy.Duration(sim_seconds)
+        while rospy.get_rostime() < deadline:
+            for i in self.ids:
+                publish(i)
+            rospy.sleep(0.05)
+
+
+class UalApi(UalBehaviour):
+    """UalBehaviour, and what only the simulator has: clock, battery drain, spawning, collisions, tf."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.collisions = Latest("/magna/sim/collisions", CollisionEvent)
+        cls.clock = Latest("/clock", Clock)
+        rospy.wait_for_service("/magna/sim/spawn_model", timeout=30)
+        cls.spawn = rospy.ServiceProxy("/magna/sim/spawn_model", SpawnModel)
+        cls.delete = rospy.ServiceProxy("/magna/sim/delete_model", DeleteModel)
+        cls.tf_buffer = tf2_ros.Buffer()
+        cls.tf_listener = tf2_ros.TransformListener(cls.tf_buffer)
+        super().setUpClass()
+
+    def test_1b_the_clock_runs(self):
         first = self.clock.msg.clock
         rospy.sleep(0.5)
         self.assertGreater(self.clock.msg.clock, first)
-        wait(lambda: all(self.battery[i].msg for i in IDS), "battery messages")
-        self.assertGreater(self.battery[1].msg.percentage, 0.9)
-        self.assertEqual(self.battery[1].msg.power_supply_technology, BatteryState.POWER_SUPPLY_TECHNOLOGY_LIPO)
 
-    def test_2_refusals_leave_the_simulation_running(self):
-        self.call_fails(lambda: self.services[1, "land"](blocking=True), "land refused: UAV 1 is LANDED_ARMED")
-        self.call_fails(lambda: self.services[2, "go_to_waypoint"](waypoint=pose_at(1, 1, 1), blocking=True),
-                        "go_to_waypoint refused")
-        self.call_fails(lambda: self.services[1, "take_off"](height=float("nan"), blocking=True), "height")
+    def test_2b_refused_spawns_leave_the_simulation_running(self):
         answer = self.spawn(SpawnModelRequest(name="uav_2", kind="obstacle", shape="cube", dimensions=[1, 1, 1]))
         self.assertFalse(answer.success)
         self.assertIn("name: 'uav_2' is taken", answer.message)
@@ -128,46 +236,9 @@ class UalApi(unittest.TestCase):
         rospy.sleep(0.3)
         self.assertGreater(self.clock.msg.clock, before)
 
-    def test_3_take_off_blocking_and_not(self):
-        starts = {i: self.position(i) for i in IDS}
-        self.services[1, "take_off"](height=2.0, blocking=True)
-        self.settle()
-        self.assertEqual(self.state_of(1), State.FLYING_AUTO)
-        self.assertAlmostEqual(self.position(1)[2], 2.0, delta=0.2)
-        for i in (2, 3):
-            self.services[i, "take_off"](height=2.0, blocking=False)
-        self.assertEqual({self.state_of(i) for i in (2, 3)} - {State.TAKING_OFF, State.LANDED_ARMED}, set())
-        wait(lambda: all(self.state_of(i) == State.TAKING_OFF for i in (2, 3)), "TAKING_OFF after take_off")
-        wait(lambda: all(self.state_of(i) == State.FLYING_AUTO for i in (2, 3)), "FLYING_AUTO")
-        self.call_fails(lambda: self.services[1, "take_off"](height=1.0, blocking=True),
-                        "take_off refused: UAV 1 is FLYING_AUTO")
-        for i in IDS:
-            self.assertLess(math.dist(self.position(i)[:2], starts[i][:2]), 0.01)
+    def test_3b_tf_follows_the_uav(self):
         transform = self.tf_buffer.lookup_transform("map", "uav_1/base_link", rospy.Time(0), rospy.Duration(5))
         self.assertAlmostEqual(transform.transform.translation.z, self.position(1)[2], delta=0.15)
-
-    def test_4_set_pose_set_velocity_and_bad_setpoints(self):
-        targets = {i: (1.5, self.position(i)[1], 2.5) for i in IDS}
-        self.stream(lambda i: self.set_pose[i].publish(pose_at(*targets[i], yaw=math.pi / 2)), 6.0)
-        for i in IDS:
-            self.assertLess(math.dist(self.position(i), targets[i]), 0.1)
-            q = self.pose[i].msg.pose.orientation
-            self.assertAlmostEqual(2 * math.atan2(q.z, q.w), math.pi / 2, delta=0.05)
-        before = {i: self.position(i) for i in IDS}
-        twist = TwistStamped()
-        twist.header.frame_id = "map"
-        twist.twist.linear.y = 0.5
-        self.stream(lambda i: self.set_velocity[i].publish(twist), 2.0)
-        for i in IDS:
-            self.assertAlmostEqual(self.velocity[i].msg.twist.linear.y, 0.5, delta=0.05)
-            self.assertAlmostEqual(self.position(i)[1] - before[i][1], 1.0, delta=0.3)
-        wait(lambda: all(abs(self.velocity[i].msg.twist.linear.y) < 0.02 for i in IDS),
-             "the hover after set_velocity stops (velocity timeout)")
-        rospy.sleep(3.0)  # the hold position was taken while still moving: let it settle back
-        held = {i: self.position(i) for i in IDS}
-        self.stream(lambda i: self.set_pose[i].publish(pose_at(float("nan"), 0, 2)), 1.0)
-        for i in IDS:
-            self.assertLess(math.dist(self.position(i), held[i]), 0.05)
 
     def test_5_collision_with_a_spawned_obstacle(self):
         x, y, _ = self.position(3)
@@ -180,46 +251,8 @@ class UalApi(unittest.TestCase):
         self.assertTrue(self.delete(name="wall").success)
         self.services[3, "go_to_waypoint"](waypoint=pose_at(x, y, 2.5), blocking=True)
 
-    def test_6_geographic_waypoint_home_frame_and_manual_recovery(self):
-        origin = rospy.get_param("/magna_sim/map_origin_geo")
-        lat, lon, alt = enu_to_geodetic([1.0, -2.0, 2.0], origin)
-        self.services[1, "go_to_waypoint_geo"](waypoint=NavSatFix(latitude=lat, longitude=lon, altitude=alt),
-                                               blocking=True)
-        self.settle()
-        self.assertLess(math.dist(self.position(1), (1.0, -2.0, 2.0)), 0.33)
-        self.call_fails(lambda: self.services[1, "go_to_waypoint_geo"](
-            waypoint=NavSatFix(latitude=float("nan"), longitude=lon, altitude=alt), blocking=True), "finite")
-        self.services[1, "set_home"](set_z=False)
-        home = self.position(1)
-        self.services[1, "go_to_waypoint"](waypoint=pose_at(1.0, 0.0, 1.0, frame="uav_1_home"), blocking=True)
-        self.settle()
-        self.assertLess(math.dist(self.position(1), (home[0] + 1.0, home[1], 1.0)), 0.33)
-        self.call_fails(lambda: self.services[1, "go_to_waypoint"](waypoint=pose_at(0, 0, 1, frame="odom"),
-                                                                   blocking=True), "frame_id 'odom' is not known")
-        self.call_fails(lambda: self.services[1, "recover_from_manual"](), "UAV 1 is FLYING_AUTO")
-
-    def test_7_go_to_and_land_where_they_started(self):
-        for i in IDS:
-            y = (i - 2) * 2.0
-            self.services[i, "go_to_waypoint"](waypoint=pose_at(0.0, y, 1.5), blocking=True)
-            self.settle()
-            self.assertLess(math.dist(self.position(i), (0.0, y, 1.5)), 0.33)
-        self.services[1, "land"](blocking=True)
-        self.settle()
-        self.assertEqual(self.state_of(1), State.LANDED_ARMED)
-        for i in (2, 3):
-            self.services[i, "land"](blocking=False)
-        wait(lambda: all(self.state_of(i) == State.LANDED_ARMED for i in IDS), "all landed")
-        for i in IDS:
-            self.assertLess(self.position(i)[2], 0.06)
+    def test_8_the_battery_was_used(self):
         self.assertLess(self.battery[1].msg.percentage, 1.0)
-
-    def stream(self, publish, sim_seconds):
-        deadline = rospy.get_rostime() + rospy.Duration(sim_seconds)
-        while rospy.get_rostime() < deadline:
-            for i in IDS:
-                publish(i)
-            rospy.sleep(0.05)
 
 
 if __name__ == "__main__":
