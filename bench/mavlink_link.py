@@ -15,7 +15,7 @@ Both take off to 3 m. Then:
      set-point handling and its telemetry back. Target (DESIGN.md section 6): MAVLink p50 within 2x of
      direct.
   2. the set-point stream's gaps (ual_mavlink streams at 30 Hz: 33.3 ms) as the vehicle side receives
-     them: while the latency is measured (no load), then for --seconds (60) with both cores busy (two
+     them: while the latency is measured (no burners), then for --seconds (60) with both cores busy (two
      CPU burners this bench starts and ends): p50, p99 and max in ms, side by side, with ratios to the
      nominal period. PX4 leaves OFFBOARD when set-points stop for its offboard-loss timeout (1 s in
      magna_sim's vehicle): the max gap is the figure to watch.
@@ -348,14 +348,14 @@ def print_figures(result: dict, args) -> None:
     if idle and busy:
         print(f"\nset-point stream (SET_POSITION_TARGET_LOCAL_NED as the vehicle side receives them; nominal "
               f"{STREAM_PERIOD_MS:.1f} ms), gaps in ms")
-        head = (f"{'':<18} {'n':>6} {'Hz':>6} {'p50':>7} {'p99':>7} {'max':>7} {'>=1 s':>6} "
+        head = (f"{'':<20} {'n':>6} {'Hz':>6} {'p50':>7} {'p99':>7} {'max':>7} {'>=1 s':>6} "
                 f"{'p99 / period':>13} {'max / period':>13}")
         print(head)
         print("-" * len(head))
-        for label, g in (("idle (trials)", idle), (f"{result.get('burners', 2)} burners busy", busy)):
-            print(f"{label:<18} {g['n']:>6} {g['rate']:>6.1f} {g['p50']:>7.1f} {g['p99']:>7.1f} {g['max']:>7.1f} "
+        for label, g in (("no burners (trials)", idle), (f"{result.get('burners', 2)} burners busy", busy)):
+            print(f"{label:<20} {g['n']:>6} {g['rate']:>6.1f} {g['p50']:>7.1f} {g['p99']:>7.1f} {g['max']:>7.1f} "
                   f"{g['over_loss']:>6} {g['p99'] / STREAM_PERIOD_MS:>12.2f}x {g['max'] / STREAM_PERIOD_MS:>12.2f}x")
-        print(f"busy / idle: p99 {busy['p99'] / idle['p99']:.2f}x, max {busy['max'] / idle['max']:.2f}x; "
+        print(f"busy / no burners: p99 {busy['p99'] / idle['p99']:.2f}x, max {busy['max'] / idle['max']:.2f}x; "
               f">=1 s = gaps at or over the vehicle's offboard-loss timeout (it would leave OFFBOARD); "
               f"load average {result.get('load', math.nan):.1f} on {os.cpu_count()} cores")
     states = result.get("states_after")
