@@ -257,6 +257,11 @@ def test_bad_settings_are_refused_with_the_fix():
         UdpProxy(("127.0.0.1", 0), ("127.0.0.1", 9), loss=1.5)
     with pytest.raises(ValueError, match="both cut_at and cut_for"):
         UdpProxy(("127.0.0.1", 0), ("127.0.0.1", 9), cut_at=3.0)
+    with pytest.raises(ValueError, match="cut_for >= 0"):
+        UdpProxy(("127.0.0.1", 0), ("127.0.0.1", 9), cut_at=3.0, cut_for=-1.0)
+    nothing_cut = UdpProxy(("127.0.0.1", 0), ("127.0.0.1", 9), cut_at=0.0, cut_for=0.0).start()
+    assert not nothing_cut.is_cut()  # a fleet file may say cut_for: 0
+    nothing_cut.stop()
     with pytest.raises(ValueError, match="HOST:PORT"):
         parse_host_port("14580")
     assert parse_host_port("14590", default_host="0.0.0.0") == ("0.0.0.0", 14590)

@@ -99,8 +99,8 @@ class UdpProxy:
             raise ValueError(f"delay {delay}: give the one-way delay in seconds, >= 0 (0.05 for 50 ms)")
         if (cut_at is None) != (cut_for is None):
             raise ValueError("a scheduled cut needs both cut_at and cut_for (seconds after the start, seconds long)")
-        if cut_at is not None and (cut_at < 0 or not cut_for > 0):
-            raise ValueError(f"cut_at {cut_at}, cut_for {cut_for}: give cut_at >= 0 and cut_for > 0 seconds")
+        if cut_at is not None and not (cut_at >= 0 and cut_for >= 0):  # a cut of 0 s cuts nothing
+            raise ValueError(f"cut_at {cut_at}, cut_for {cut_for}: give cut_at >= 0 and cut_for >= 0 seconds")
         self.loss, self.delay = float(loss), float(delay)
         self.cut_at, self.cut_for = cut_at, cut_for
         self.seed = seed
@@ -330,8 +330,8 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(str(error))
     if args.cut_at is not None and args.cut_for is None:
         parser.error("--cut-at needs --cut-for SECONDS (how long the cut lasts)")
-    if args.cut_for is not None and args.cut_for <= 0:
-        parser.error(f"--cut-for {args.cut_for:g}: give a positive number of seconds")
+    if args.cut_for is not None and not args.cut_for >= 0:
+        parser.error(f"--cut-for {args.cut_for:g}: give the cut's length in seconds, 0 or more")
     try:
         proxy = UdpProxy(listen, vehicle, loss=args.loss, delay=args.delay, cut_at=args.cut_at,
                          cut_for=args.cut_for if args.cut_at is not None else None, seed=args.seed)
