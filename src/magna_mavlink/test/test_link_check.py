@@ -17,6 +17,7 @@ from magna_common.ports import free_port
 from magna_mavlink import link_check
 from magna_mavlink.autopilot import encode_mode
 from magna_mavlink.link_check import BadUrl, LinkUrl, check_link, parse_url
+from magna_mavlink.udp_proxy import UdpProxy
 
 WAIT = 10.0  # s: the check returns as soon as it has everything; this only bounds a broken run
 SHORT = 3.0  # s: for checks that must wait out their timeout (something never comes)
@@ -128,6 +129,18 @@ def test_an_ardupilot_vehicle_sending_to_a_udpin_port_passes():
     assert got["autopilot"].detail.startswith("ArduPilot (HEARTBEAT.autopilot 3)")
     assert got["system id"].detail.startswith("3, component 1")
     assert got["flight mode"].detail == "GUIDED (the UAL's set-point mode)" and got["armed"].detail == "armed"
+
+
+def test_the_check_passes_through_a_lossy_slow_link_and_fails_while_it_is_cut():
+    with ScriptedVehicle() as vehicle, \
+            UdpProxy(("127.0.0.1", 0), ("127.0.0.1", vehicle.port), loss=0.2, delay=0.05, seed=1) as proxy:
+        url = f"udpout:127.0.0.1:{proxy.listen_address[1]}"
+        checks = check_link(url, timeout=WAIT)
+        assert all(c.ok for c in checks), checks  # 20 % lost each way, 50 ms each way: asked again until answered
+        proxy.cut()
+        (line,) = check_link(url, timeout=1.0)
+        assert not line.ok and line.detail == f"no HEARTBEAT from a vehicle at {url} within 1 s"
+        assert proxy.stats().to_vehicle.cut > 0
 
 
 def test_no_vehicle_at_the_url_gives_one_line_with_the_url_and_the_fix():
