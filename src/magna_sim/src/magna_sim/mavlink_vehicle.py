@@ -170,6 +170,12 @@ class MavlinkVehicle:
                     self._outbox.append(message)
         return self._flush()
 
+    @property
+    def offboard_set_point_time(self) -> float | None:
+        """Simulated time of the latest set-point while this side flies OFFBOARD, else None. The node keeps
+        the simulation from running far ahead of such a stream (as of a UAV manager flying a role)."""
+        return self._last_setpoint if self.mode == "OFFBOARD" and self.armed and not self.external else None
+
     def heartbeat(self):
         """A HEARTBEAT now (the node sends one per wall second while the simulation is paused)."""
         return self.telemetry.heartbeat(self.status())

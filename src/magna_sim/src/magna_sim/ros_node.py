@@ -61,8 +61,9 @@ Private parameters (defaults):
   ~start_paused (false)  start with simulated time standing still until /magna/sim/pause false
   ~lockstep (true)       never run more than ~lockstep_lead (0.15) simulated s ahead of a UAV
                          manager flying a role (it announces each control step on
-                         /magna/uav_{id}/control_step, std_msgs/Float64); one silent for
-                         ~lockstep_timeout (1.0) wall s is let go
+                         /magna/uav_{id}/control_step, std_msgs/Float64), nor of a MAVLink client
+                         streaming OFFBOARD set-points; one silent for ~lockstep_timeout (1.0) wall s
+                         is let go
   ~seed (none)           seed for wind and sensor noise: same seed, same run
   ~noise/position_std (0), ~noise/velocity_std (0), ~wind_std (0, N, dynamic model only)
   ~map_origin_geo ([])   [lat, lon, alt] of the map origin, for go_to_waypoint_geo
@@ -255,6 +256,11 @@ class SimNode:
         self._collision_pub = rospy.Publisher("/magna/sim/collisions", CollisionEvent, queue_size=100)
         self._battery_pubs: dict[int, rospy.Publisher] = {}
         self.lockstep = Lockstep(settings.lockstep_lead, settings.lockstep_timeout) if settings.lockstep else None
+        # MAVLink clients streaming OFFBOARD set-points are controllers too: the vehicle drops OFFBOARD after
+        # COM_OF_LOSS_T of simulated time, so a simulation far ahead of their wall-clock stream would drop it.
+        self._offboard_lockstep = (Lockstep(settings.lockstep_lead, settings.lockstep_timeout)
+                                   if settings.lockstep else None)
+        self._offboard_heard: dict[int, float | None] = {}  # the set-point time last told to it, per UAV
         self._step_heard = threading.Event()
         self._step_subs: dict[int, rospy.Subscriber] = {}
         self.mavlink: dict[int, tuple[MavlinkEndpoint, MavlinkVehicle]] = {}  # UAVs that speak MAVLink
@@ -346,6 +352,9 @@ class SimNode:
     def _forget_uav(self, uav_id: int) -> None:
         if uav_id in self.mavlink:
             self.mavlink.pop(uav_id)[0].close()
+            self._offboard_heard.pop(uav_id, None)
+            if self._offboard_lockstep is not None:
+                self._offboard_lockstep.forget(uav_id)
         if uav_id in self._step_subs:
             self._step_subs.pop(uav_id).unregister()
             self.lockstep.forget(uav_id)
@@ -464,12 +473,19 @@ class SimNode:
         if self.lockstep is None:
             return False
         self._step_heard.clear()  # before looking: a step heard after the look still ends the wait
-        holding = self.lockstep.holds(self.world.time + self.world.dt)
+        next_time = self.world.time + self.world.dt
+        holding = self.lockstep.holds(next_time)
         if self.lockstep.let_go:
             ids, self.lockstep.let_go = self.lockstep.let_go, []
             rospy.logwarn(f"magna_sim: the UAV manager(s) of UAV {', '.join(map(str, ids))} went silent for "
                           f"{self.lockstep.timeout:g} wall s while flying; the simulation goes on without "
                           f"waiting for them")
+        if self.mavlink and self._offboard_lockstep.holds(next_time):
+            holding = True
+        if self._offboard_lockstep.let_go:
+            ids, self._offboard_lockstep.let_go = self._offboard_lockstep.let_go, []
+            rospy.loginfo(f"magna_sim: the OFFBOARD set-points of MAVLink UAV {', '.join(map(str, ids))} stopped "
+                          f"for {self.lockstep.timeout:g} wall s; the simulation goes on without waiting for them")
         if holding:
             self._step_heard.wait(0.01)
         return holding
@@ -503,11 +519,23 @@ class SimNode:
                 for message in messages:
                     answers.extend(vehicle.handle(message, now))
                 endpoint.send(answers)
+        self._pace_to_offboard_streams()
 
     def _tick_mavlink(self, now: float) -> None:
         """After a physics step: each MAVLink vehicle flies its mode and sends the telemetry that is due."""
         for endpoint, vehicle in self.mavlink.values():
             endpoint.send(vehicle.tick(now))
+        self._pace_to_offboard_streams()
+
+    def _pace_to_offboard_streams(self) -> None:
+        """Tell the lockstep about each new OFFBOARD set-point (only new ones: a repeat would look like life)."""
+        if self._offboard_lockstep is None:
+            return
+        for uav_id, (_, vehicle) in self.mavlink.items():
+            stamp = vehicle.offboard_set_point_time
+            if stamp != self._offboard_heard.get(uav_id):
+                self._offboard_heard[uav_id] = stamp
+                self._offboard_lockstep.heard(uav_id, -1.0 if stamp is None else stamp)
 
     def shutdown(self) -> None:
         self.queue.stop("magna_sim is shutting down")
