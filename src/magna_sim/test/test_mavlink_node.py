@@ -76,11 +76,30 @@ class Client:
         raise AssertionError(f"timed out waiting for {what}; last heard: "
                              f"{ {k: str(v) for k, v in self.latest.items() if k in ('HEARTBEAT', 'COMMAND_ACK')} }")
 
+    def drain(self) -> None:
+        """Read what queued up while the test did something else (a full socket buffer drops new datagrams)."""
+        self.socket.settimeout(0.0)
+        try:
+            while True:
+                try:
+                    self.poll()
+                except BlockingIOError:
+                    return
+        finally:
+            self.socket.settimeout(0.1)
+
     def command(self, command, *params):
+        """COMMAND_LONG, sent again each wall second without an answer (as MAVSDK does); the COMMAND_ACK's result."""
         params = list(params) + [NAN] * (7 - len(params))
-        self.send(mavlink.MAVLink_command_long_message(1, 1, command, 0, *params))
-        return self.wait_for(lambda m: m.get_type() == "COMMAND_ACK" and m.command == command,
-                             f"COMMAND_ACK of {command}").result
+        self.drain()
+        for _ in range(int(WAIT)):
+            self.send(mavlink.MAVLink_command_long_message(1, 1, command, 0, *params))
+            try:
+                return self.wait_for(lambda m: m.get_type() == "COMMAND_ACK" and m.command == command,
+                                     f"COMMAND_ACK of {command}", timeout=1.0).result
+            except AssertionError:
+                continue
+        raise AssertionError(f"no COMMAND_ACK of {command} within {WAIT} s")
 
     def mode(self) -> tuple[str, bool]:
         heartbeat = self.latest["HEARTBEAT"]
