@@ -35,7 +35,8 @@ class Client:
     """pymavlink over a UDP socket, as system 255: `udpin` on a port (listen where the vehicle sends) or, with
     `to`, `udpout` towards the vehicle's own port."""
 
-    def __init__(self, port: int = 0, to: int | None = None):
+    def __init__(self, port: int = 0, to: int | None = None, system: int = 1):
+        self.system = system  # the vehicle's
         self.socket = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.socket.bind(("127.0.0.1", port))
         self.socket.settimeout(0.1)
@@ -52,25 +53,25 @@ class Client:
         assert self.vehicle is not None, "nothing heard from the vehicle yet"
         self.socket.sendto(message.pack(self.packer), self.vehicle)
 
-    def poll(self, system: int = 1) -> list:
+    def poll(self) -> list:
         try:
             data, address = self.socket.recvfrom(65535)
         except TimeoutError:
             return []
         self.vehicle = self.vehicle or address  # udpin: answer whoever sends
         messages = [m for m in self.parser.parse_buffer(data) or () if m.get_type() != "BAD_DATA"
-                    and m.get_srcSystem() == system]
+                    and m.get_srcSystem() == self.system]
         for message in messages:
             self.latest[message.get_type()] = message
         return messages
 
-    def wait_for(self, condition, what, timeout=WAIT, each=None, system=1):
+    def wait_for(self, condition, what, timeout=WAIT, each=None):
         """Read until condition(message) holds for a message; `each()` runs between reads (a set-point stream)."""
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             if each is not None:
                 each()
-            for message in self.poll(system):
+            for message in self.poll():
                 if condition(message):
                     return message
         raise AssertionError(f"timed out waiting for {what}; last heard: "
@@ -93,7 +94,7 @@ class Client:
         params = list(params) + [NAN] * (7 - len(params))
         self.drain()
         for _ in range(int(WAIT)):
-            self.send(mavlink.MAVLink_command_long_message(1, 1, command, 0, *params))
+            self.send(mavlink.MAVLink_command_long_message(self.system, 1, command, 0, *params))
             try:
                 return self.wait_for(lambda m: m.get_type() == "COMMAND_ACK" and m.command == command,
                                      f"COMMAND_ACK of {command}", timeout=1.0).result
@@ -208,9 +209,10 @@ def call(master, spawns=(), delete=()):
 
 
 def test_a_mavlink_only_stand_in_has_no_ual_and_deleting_it_frees_its_port(fresh_ros_master):
-    node, ros = start_sim(fresh_ros_master)  # UAV 1: UAL only
+    """All while the simulation is paused (as the ground station spawns): spawning, answers and heartbeats go on."""
+    node, ros = start_sim(fresh_ros_master, "_start_paused:=true")  # UAV 1: UAL only
     local, remote, other = free_udp_port(), free_udp_port(), free_udp_port()
-    offboard_api = Client(remote)
+    offboard_api = Client(remote, system=2)
     try:
         results = call(fresh_ros_master, spawns=[
             ("uav_2", 2, "mavlink", local, remote),
@@ -230,9 +232,10 @@ def test_a_mavlink_only_stand_in_has_no_ual_and_deleting_it_frees_its_port(fresh
             ros.lookupService("/uav_2/ual/take_off")
         assert ros.lookupService("/uav_5/ual/take_off")
 
-        heartbeat = offboard_api.wait_for(lambda m: m.get_type() == "HEARTBEAT", "a HEARTBEAT from the stand-in",
-                                          system=2)
+        heartbeat = offboard_api.wait_for(lambda m: m.get_type() == "HEARTBEAT", "a HEARTBEAT from the stand-in")
         assert heartbeat.get_srcComponent() == 1
+        assert offboard_api.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1) == mavlink.MAV_RESULT_ACCEPTED
+        offboard_api.wait_for(lambda m: m.get_type() == "HEARTBEAT" and offboard_api.mode()[1], "armed, while paused")
         # The refused uav_4 left nothing behind: its name spawns now, on a free port.
         assert call(fresh_ros_master, spawns=[("uav_4", 4, "mavlink", free_udp_port(), other)])["uav_4"][0]
         assert not port_is_free(local)

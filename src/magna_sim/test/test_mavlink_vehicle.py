@@ -483,8 +483,31 @@ def test_a_ual_flight_is_reported_and_a_mavlink_command_is_a_pilots_take_over():
     assert link.set_mode("AUTO.LOITER") == ACCEPTED
     link.run(0.1)
     assert link.ual.state == UalState.FLYING_MANUAL and not link.vehicle.external
+    link.ual.recover_from_manual()  # the UAL takes it back: MAVLink watches again
+    link.run(0.1)
+    assert link.ual.state == UalState.FLYING_AUTO and link.vehicle.external and link.mode() == "OFFBOARD"
     assert link.result(mavlink.MAV_CMD_NAV_LAND) == ACCEPTED
+    assert link.ual.state == UalState.FLYING_MANUAL
     link.run_until(lambda: link.vehicle.on_ground, "touch-down")
     link.run(0.1)
     assert link.ual.state == UalState.LANDED_ARMED
+    link.world.close()
+
+
+def test_a_mavlink_offboard_take_over_is_not_undone_by_the_uals_velocity_timeout():
+    link = Link(with_ual=True)
+    link.run(0.05)
+    link.ual.take_off(2.0)
+    link.run_until(lambda: link.ual.state == UalState.FLYING_AUTO, "UAL take-off")
+    link.ual.set_velocity([0.5, 0.0, 0.0], 0.0)  # the UAL flies a velocity, then falls silent
+
+    def north():
+        link.setpoint(VELOCITY_ONLY | 1024, vx=1.0)
+
+    north()
+    assert link.set_mode("OFFBOARD") == ACCEPTED
+    assert link.ual.state == UalState.FLYING_MANUAL
+    link.run(3.0, every=0.1, each=north)  # past the UAL's 1 s velocity timeout
+    assert link.vehicle.mode == "OFFBOARD" and not link.vehicle.external
+    assert link.uav.velocity[1] == pytest.approx(1.0, abs=0.05)  # MAVLink's north, not the UAL's hold
     link.world.close()

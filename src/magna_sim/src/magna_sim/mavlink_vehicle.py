@@ -288,6 +288,8 @@ class MavlinkVehicle:
             self.external = False
             self._flown = not self.on_ground
             self._ground_since = self._now
+        if self.ual is not None and self.ual.state in (UalState.TAKING_OFF, UalState.FLYING_AUTO, UalState.LANDING):
+            self.ual.state = UalState.FLYING_MANUAL  # at once: the UAL's own rules must not undo this command
 
     # --- mode changes -----------------------------------------------------------------------------------------
     def _write(self, setpoint: Setpoint) -> None:
