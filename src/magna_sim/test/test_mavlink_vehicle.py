@@ -511,3 +511,19 @@ def test_a_mavlink_offboard_take_over_is_not_undone_by_the_uals_velocity_timeout
     assert link.vehicle.mode == "OFFBOARD" and not link.vehicle.external
     assert link.uav.velocity[1] == pytest.approx(1.0, abs=0.05)  # MAVLink's north, not the UAL's hold
     link.world.close()
+
+
+def test_the_fast_attitude_matches_magna_mavlink_frames():
+    """mavlink_telemetry's plain-float attitude against the rotation-matrix conversion of magna_mavlink.frames."""
+    from scipy.spatial.transform import Rotation
+
+    from magna_mavlink import frames
+    from magna_sim.mavlink_telemetry import _quaternion_zyx, attitude_ned
+
+    for quaternion in Rotation.random(200, random_state=3).as_quat():
+        reference = Rotation.from_quat(frames.attitude_enu_flu_to_ned_frd(quaternion))
+        yaw, pitch, roll = reference.as_euler("ZYX")
+        fast = attitude_ned(*quaternion)
+        assert fast == pytest.approx((roll, pitch, yaw), abs=1e-9) or abs(abs(pitch) - math.pi / 2) < 1e-3
+        w, x, y, z = _quaternion_zyx(*fast)
+        assert abs(np.dot([x, y, z, w], reference.as_quat())) == pytest.approx(1.0, abs=1e-9)  # same rotation
