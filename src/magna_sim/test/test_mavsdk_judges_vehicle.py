@@ -5,11 +5,11 @@ the native binding, with MAVSDK's C++ core inside the wheel (no mavsdk_server pr
 Its core runs in threads of this process and ends with `Mavsdk.destroy()`; the simulator is a node of
 a private master, ended by pid with it.
 
-The simulation runs at RTF times real time: MAVSDK streams its set-points at 20 Hz of wall time, and
-the vehicle, like PX4, drops OFFBOARD after COM_OF_LOSS_T (1 s) of *simulated* time without one, so
-the factor must leave that stream dense in simulated time (at 2x a set-point every 0.1 s). Every
-wait is on a condition with a generous deadline; the offboard-loss delay is measured in simulated
-time, from the vehicle's own time stamps.
+The simulation runs at RTF times real time. MAVSDK streams its set-points at 20 Hz of wall time and
+the vehicle, like PX4, drops OFFBOARD after COM_OF_LOSS_T (1 s) of *simulated* time without one: at
+2x that is a set-point every 0.1 s, and the node's lockstep keeps the simulation within 0.15 s of the
+latest one when a loaded machine delays MAVSDK's thread. Every wait is on a condition with a generous
+deadline; the offboard-loss delay is measured in simulated time, from the vehicle's own time stamps.
 """
 import json
 import socket
