@@ -30,6 +30,7 @@ class FakeAutopilot:
         self.rate = rate
         self.lock = threading.Lock()
         self.heartbeat = True  # False: silent, as a cut link
+        self.heartbeats = True  # False: no HEARTBEAT, telemetry still (as when a lossy radio loses a few)
         self.send_telemetry = True
         self.extended_sys_state = True
         self.answer_commands = True
@@ -80,7 +81,7 @@ class FakeAutopilot:
                 self._handle(msg, now)
             with self.lock:
                 self._step(period, now)
-                if self.heartbeat and now - last_heartbeat >= 0.2:
+                if self.heartbeat and self.heartbeats and now - last_heartbeat >= 0.2:
                     last_heartbeat = now
                     self._send_heartbeat()
                     self._send_home()

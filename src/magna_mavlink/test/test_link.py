@@ -104,9 +104,9 @@ def test_commands_are_acknowledged_refused_or_retried_until_given_up():
                 link.command_accepted(mavlink.MAV_CMD_DO_SET_SERVO)
             fake.answer_commands = False
             sent = len(fake.commands)
-            with pytest.raises(CommandFailed, match=r"arm: no COMMAND_ACK from system 1 at udpin:.* after 3 tries"):
+            with pytest.raises(CommandFailed, match=r"arm: no COMMAND_ACK from system 1 at udpin:.* after 5 tries"):
                 link.command_accepted(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0, name="arm", timeout=0.2)
-            wait_until(lambda: len(fake.commands) == sent + 3, "three sends of the unanswered command")
-            assert [c.confirmation for c in fake.commands[sent:]] == [0, 1, 2]  # as the command protocol says
+            wait_until(lambda: len(fake.commands) == sent + 5, "five sends of the unanswered command")
+            assert [c.confirmation for c in fake.commands[sent:]] == [0, 1, 2, 3, 4]  # as the command protocol says
     finally:
         fake.stop()

@@ -92,7 +92,8 @@ def test_the_ual_api_over_a_mavlink_link(rospy_node, node):
     fake.pilot_selects("POSCTL")  # a safety pilot takes over
     wait_until(lambda: state.msg.state == State.FLYING_MANUAL, "FLYING_MANUAL", WAIT)
     fake.heartbeat = False  # the link goes
-    wait_until(lambda: link.msg.data == f"no heartbeat from {url} for 0.5 s", "the link topic to say so", WAIT)
+    lost = f"no heartbeat from {url} for 0.5 s (nor any other message)"
+    wait_until(lambda: link.msg.data == lost, "the link topic to say so", WAIT)
     wait_until(lambda: state.msg.state == State.UNINITIALIZED, "UNINITIALIZED", WAIT)
     fake.heartbeat = True
     wait_until(lambda: link.msg.data == "", "the link back", WAIT)

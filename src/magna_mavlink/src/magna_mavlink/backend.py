@@ -4,7 +4,8 @@ No ROS here. The node calls `tick(now)` at the stream rate (30 Hz of its clock: 
 or not) and the UAL commands from its service threads; tests do both on a clock of their own.
 
 - **State** (ual_state.ual_state): UNINITIALIZED while the position is not valid or the HEARTBEAT is
-  older than `heartbeat_timeout`; then from armed, landed state, flight mode and the running call.
+  older than `heartbeat_timeout` (the HEARTBEAT or any other message of the autopilot, so a lossy radio
+  does not count as a lost link); then from armed, landed state, flight mode and the running call.
 - **Guards** as UAL: take_off from LANDED_ARMED (with arming `auto` also LANDED_DISARMED: it arms
   first); go_to_waypoint(_geo), set_pose, set_velocity and land in FLYING_AUTO; recover_from_manual
   in FLYING_MANUAL. NaN and infinities are refused. A refusal raises CommandRefused with the reason.
@@ -74,7 +75,7 @@ class Settings:
     hold_pose_time: float = 1.0  # s held at a target before it counts as reached (UAL: 3 s; magna_sim: 1 s)
     take_off_speed: float = 1.0  # m/s of the climbing set-point (PX4)
     stuck_time: float = 10.0  # s without coming nearer before a target is given up on; 0: never
-    heartbeat_timeout: float = 2.0  # s without the autopilot's HEARTBEAT before the link counts as lost
+    heartbeat_timeout: float = 2.0  # s without a message of the autopilot before the link counts as lost
     velocity_timeout: float = VELOCITY_TIMEOUT
     mode_timeout: float = 5.0  # s for the autopilot to show a mode or arming it accepted
     pilot_timeout: float = 120.0  # s a take_off waits for the safety pilot's switch (arming pilot)
@@ -158,10 +159,13 @@ class UalBackend:
         return ual_state(True, t.armed, t.landed_state, t.follows_set_points, call)
 
     def _update_link(self, t: Telemetry, now: float) -> bool:
+        # Any message counts as a sign of life, not only the 1 Hz HEARTBEAT: through a radio that loses one
+        # packet in five, two HEARTBEATs in a row go missing every minute or so, the 30 Hz telemetry never.
         if t.heartbeat_time is None:
             problem = f"no heartbeat from {self.url} yet"
-        elif now - t.heartbeat_time > self.settings.heartbeat_timeout:
-            problem = f"no heartbeat from {self.url} for {self.settings.heartbeat_timeout:.1f} s"
+        elif now - t.heard_time > self.settings.heartbeat_timeout:
+            problem = (f"no heartbeat from {self.url} for {self.settings.heartbeat_timeout:.1f} s "
+                       f"(nor any other message)")
         else:
             problem = ""
         if problem != self.link_problem:

@@ -19,7 +19,7 @@ Serve the GRVC UAL API of one UAV under /uav_{id}/ual/ over MAVLink: PX4 (flown 
 ArduPilot Copter (flown in GUIDED), told apart by the autopilot's HEARTBEAT. Topics pose, velocity,
 odom, state, set_pose, set_velocity; services take_off, land, go_to_waypoint, go_to_waypoint_geo,
 set_home, recover_from_manual; the id in /ual_ids while it runs. Link health on the latched topic
-/uav_{id}/ual_mavlink/link: "" while the HEARTBEAT comes, else what is wrong (the UAL state is then
+/uav_{id}/ual_mavlink/link: "" while the autopilot is heard, else what is wrong (the UAL state is then
 UNINITIALIZED). Exit status 2 when the URL cannot be opened or no vehicle answers on it.
 
 Every option is also a private parameter: _id:=3 _url:=udpin:0.0.0.0:14542 _origin_geo:="[lat, lon, alt]",
@@ -72,7 +72,8 @@ def build_parser() -> argparse.ArgumentParser:
                         help="geographic position of the map origin (a world's origin_geo; ALT in the autopilot's "
                              "datum, AMSL): poses are then in that map; default: the autopilot's local frame")
     parser.add_argument("--heartbeat-timeout", type=float, metavar="SECONDS",
-                        help="without the autopilot's HEARTBEAT this long (ROS time) the link counts as lost (2)")
+                        help="without the autopilot's HEARTBEAT or any other message of it this long (ROS time) "
+                             "the link counts as lost (2)")
     parser.add_argument("--connect-timeout", type=float, metavar="SECONDS",
                         help="wall-clock seconds to wait for the first HEARTBEAT before exiting with status 2 (10)")
     parser.add_argument("--no-tf", action="store_true",

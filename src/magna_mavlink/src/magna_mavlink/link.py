@@ -30,7 +30,7 @@ MAV_COMP_ID_AUTOPILOT1 = 1
 MAV_COMP_ID_ONBOARD_COMPUTER = 191
 HEARTBEAT_PERIOD = 1.0  # s between our own HEARTBEATs (MAVLink's heartbeat microservice asks for 1 Hz)
 ACK_TIMEOUT = 1.0  # s for one COMMAND_ACK before the command is sent again
-ATTEMPTS = 3  # sends of one command before it counts as unanswered
+ATTEMPTS = 5  # sends of one command before it counts as unanswered (a radio losing 1 packet in 5: 1 in 150)
 SERIAL_BAUD = 57600  # a telemetry radio's usual rate, when the URL gives none
 
 RESULT_NAMES = {0: "ACCEPTED", 1: "TEMPORARILY_REJECTED", 2: "DENIED", 3: "UNSUPPORTED", 4: "FAILED",
@@ -166,6 +166,8 @@ class MavlinkLink:
                 continue
             if msg is None or msg.get_type() == "BAD_DATA" or msg.get_srcSystem() != self.target_system:
                 continue
+            if msg.get_srcComponent() == self.source_component and msg.get_srcSystem() == self.source_system:
+                continue  # our own, echoed by a router or proxy: not a sign of the vehicle
             kind = msg.get_type()
             if kind == "HEARTBEAT" and msg.autopilot == mavlink.MAV_AUTOPILOT_INVALID:
                 continue  # another component of the vehicle (camera, gimbal, our own echo)

@@ -38,7 +38,8 @@ AUTOPILOT_NUMBERS = {ap.PX4: ap.MAV_AUTOPILOT_PX4, ap.ARDUPILOT: ap.MAV_AUTOPILO
 class Telemetry:
     """What the vehicle last reported, in the map frame (ENU) and the FLU body."""
 
-    heartbeat_time: float | None = None
+    heartbeat_time: float | None = None  # the latest HEARTBEAT of the autopilot
+    heard_time: float | None = None  # the latest message of any kind from it: the link is alive
     autopilot: str | None = None
     mode: ap.Mode | None = None
     armed: bool = False
@@ -103,11 +104,9 @@ class VehicleState:
 
     def update(self, msg, now: float) -> None:
         handler = getattr(self, "_on_" + msg.get_type(), None)
-        if handler is not None:
-            with self._lock:
-                changes = handler(msg, now)
-                if changes:
-                    self._t = replace(self._t, **changes)
+        with self._lock:
+            changes = (handler(msg, now) if handler is not None else None) or {}
+            self._t = replace(self._t, heard_time=now, **changes)
 
     # --- one method per message ---------------------------------------------------------------------------------
     def _on_HEARTBEAT(self, msg, now):
