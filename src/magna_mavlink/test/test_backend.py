@@ -177,6 +177,20 @@ def test_a_pilots_take_over_shows_as_flying_manual_until_recovered(flight):
     wait_until(state_is(f, FLYING_AUTO), "FLYING_AUTO again")
 
 
+def test_a_pilot_who_selects_offboard_in_flight_gives_the_ual_the_uav_back(flight):
+    f = flight(arming="pilot")
+    f.fake.armed = True
+    wait_until(state_is(f, LANDED_ARMED), "LANDED_ARMED by the pilot")
+    f.fake.pilot_selects("OFFBOARD")
+    f.backend.take_off(1.0, blocking=True)
+    f.fake.pilot_selects("POSCTL")
+    wait_until(state_is(f, FLYING_MANUAL), "FLYING_MANUAL")
+    f.fake.pilot_selects("OFFBOARD")  # the stream held where the UAV was: it holds there
+    wait_until(state_is(f, FLYING_AUTO), "FLYING_AUTO")
+    f.backend.go_to("map", (1.0, -1.0, 1.5), 0.0, blocking=True)
+    assert np.allclose(f.backend.telemetry.position, (1.0, -1.0, 1.5), atol=0.165)
+
+
 def test_a_lost_heartbeat_is_said_and_makes_the_uav_uninitialized(flight):
     f = flight()
     flying(f, 1.0)

@@ -142,7 +142,9 @@ class UalBackend:
             if op is not None and not op.finished:
                 self._progress(op, t, now, link_ok)
                 self.state = self._state(t, valid)  # a call that just ended no longer decides it
-            if self.state in (FLYING_MANUAL, LANDED_ARMED, LANDED_DISARMED) and (op is None or op.finished):
+            if self.state == FLYING_AUTO:
+                self._in_control = True  # also when a pilot (or whoever) selected OFFBOARD/GUIDED in flight
+            elif self.state in (FLYING_MANUAL, LANDED_ARMED, LANDED_DISARMED) and (op is None or op.finished):
                 self._in_control = False
             if t.position_time is not None and t.autopilot is not None:
                 self._send_set_point(t, now)
@@ -189,8 +191,8 @@ class UalBackend:
 
     def _send_set_point(self, t: Telemetry, now: float) -> None:
         op = self._op
-        if op is not None and not op.finished and (op.name == LAND_CALL or op.phase == "autopilot climb"):
-            return  # the autopilot flies on its own
+        if op is not None and not op.finished and op.phase in ("descend", "autopilot climb"):
+            return  # the autopilot flies on its own (set-points until then: PX4 leaves OFFBOARD without them)
         if not self._in_control:
             self.stream.hold(t.position, t.yaw)  # hold where it is, should OFFBOARD/GUIDED be selected
         point = self.stream.at(now, t.position, t.yaw)
@@ -315,7 +317,8 @@ class UalBackend:
         with self._lock:
             self._require(FLYING_AUTO, "land")
             op = self._start(LAND_CALL)
-            self._in_control = False
+            t = self._telemetry
+            self.stream.hold(t.position, t.yaw)  # until the landing mode is on
         self._run(op, self._land, blocking)
 
     def _land(self, op: Operation) -> None:
@@ -323,6 +326,7 @@ class UalBackend:
         with self._lock:
             if not op.finished:
                 op.phase = "descend"
+                self._in_control = False
 
     def go_to(self, frame_id: str, position, yaw: float, blocking: bool) -> None:
         position = _finite_vector("waypoint.pose.position", position)
