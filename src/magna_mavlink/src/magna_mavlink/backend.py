@@ -12,7 +12,8 @@ or not) and the UAL commands from its service threads; tests do both on a clock 
 - **Set-points** go out on every tick. While the UAL flies the vehicle (taking off, FLYING_AUTO)
   the latest command is sent (setpoints.SetPointStream: a velocity not renewed within 0.5 s becomes
   a hold); otherwise a hold where the vehicle is, so that OFFBOARD/GUIDED, whoever selects it, starts
-  by holding still. Nothing is sent while landing or while ArduPilot climbs on its own take-off.
+  by holding still. Nothing is sent once AUTO.LAND/LAND is on, nor while ArduPilot climbs on its own
+  take-off.
 - **Take-off** (PX4): OFFBOARD, then the set-point climbs at `take_off_speed` to the height above
   where the vehicle stood; (ArduPilot): GUIDED and MAV_CMD_NAV_TAKEOFF, then a hold at the height.
   It succeeds once arrival.Arrival says so: within position_th / 2 of that point, heading within
