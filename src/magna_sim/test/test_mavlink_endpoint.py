@@ -4,14 +4,9 @@ import socket
 import pytest
 from pymavlink.dialects.v20 import common as mavlink
 
+from magna_common.ports import free_port
 from magna_sim.mavlink_endpoint import EndpointError, MavlinkEndpoint
 from tests.support import wait_until
-
-
-def free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
 
 
 def heartbeat():
@@ -38,7 +33,7 @@ class Client:
 
 @pytest.fixture
 def endpoint():
-    link = MavlinkEndpoint(3, free_udp_port(), free_udp_port())
+    link = MavlinkEndpoint(3, free_port(udp=True), free_port(udp=True))
     yield link
     link.close()
 
@@ -66,10 +61,10 @@ def test_it_answers_whoever_sends_to_its_port(endpoint):
 
 def test_a_taken_port_is_refused_by_name_and_close_frees_it(endpoint):
     with pytest.raises(EndpointError, match=f"mavlink_local_port: UDP 0.0.0.0:{endpoint.local_port} cannot be bound"):
-        MavlinkEndpoint(4, endpoint.local_port, free_udp_port())
+        MavlinkEndpoint(4, endpoint.local_port, free_port(udp=True))
     endpoint.close()
     assert endpoint.closed and endpoint.receive() == []
-    again = MavlinkEndpoint(4, endpoint.local_port, free_udp_port())
+    again = MavlinkEndpoint(4, endpoint.local_port, free_port(udp=True))
     again.close()
 
 

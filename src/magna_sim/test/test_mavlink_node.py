@@ -9,17 +9,14 @@ import pytest
 import rosgraph
 from pymavlink.dialects.v20 import common as mavlink
 
+from magna_common.geo import enu_to_geodetic
+from magna_common.ports import free_port
 from magna_mavlink import autopilot
 from tests.support import wait_until
 
 WAIT = 60.0  # wall s: a guard against hangs, never a performance expectation
+ORIGIN = (37.4107, -6.0028, 12.0)  # a stand-in's map origin on the Earth, as the ground station gives it
 NAN = float("nan")
-
-
-def free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
 
 
 def port_is_free(port: int) -> bool:
@@ -127,7 +124,7 @@ def ual_state(master):
 
 
 def test_pymavlink_flies_a_ual_plus_mavlink_uav_and_the_ual_sees_it_in_enu(fresh_ros_master):
-    local, remote = free_udp_port(), free_udp_port()
+    local, remote = free_port(udp=True), free_port(udp=True)
     offboard_api = Client(remote)  # where PX4 SITL's offboard API listens
     node, _ = start_sim(fresh_ros_master, "_mavlink:=true", f"_mavlink_local_port_base:={local}",
                         f"_mavlink_remote_port_base:={remote}")
@@ -188,9 +185,9 @@ rospy.init_node('mavlink_spawn_probe')
 rospy.wait_for_service('/magna/sim/spawn_model', timeout=30)
 spawn = rospy.ServiceProxy('/magna/sim/spawn_model', SpawnModel)
 results = {}
-for name, uav_id, interface, local, remote in json.loads(ARGS):
+for name, uav_id, interface, local, remote, *origin in json.loads(ARGS):
     request = SpawnModelRequest(name=name, kind='uav', uav_id=uav_id, interface=interface, mavlink_local_port=local,
-                                mavlink_remote_port=remote)
+                                mavlink_remote_port=remote, mavlink_origin_geo=origin[0] if origin else [])
     request.pose.position.x, request.pose.orientation.w = 3.0 * uav_id, 1.0
     answer = spawn(request)
     results[name] = [answer.success, answer.message]
@@ -201,7 +198,8 @@ print(json.dumps(results))
 
 
 def call(master, spawns=(), delete=()):
-    """Spawn UAVs (name, uav_id, interface, local port, remote port) and delete models through the services."""
+    """Spawn UAVs (name, uav_id, interface, local port, remote port[, origin_geo]) and delete models through the
+    services."""
     script = SPAWN.replace("ARGS", repr(json.dumps(list(spawns)))).replace("DELETE", repr(json.dumps(list(delete))))
     out = subprocess.run(["python3", "-c", script], capture_output=True, text=True, timeout=120, env=master.env())
     assert out.returncode == 0, out.stderr
@@ -211,20 +209,23 @@ def call(master, spawns=(), delete=()):
 def test_a_mavlink_only_stand_in_has_no_ual_and_deleting_it_frees_its_port(fresh_ros_master):
     """All while the simulation is paused (as the ground station spawns): spawning, answers and heartbeats go on."""
     node, ros = start_sim(fresh_ros_master, "_start_paused:=true")  # UAV 1: UAL only
-    local, remote, other = free_udp_port(), free_udp_port(), free_udp_port()
+    local, remote, other = free_port(udp=True), free_port(udp=True), free_port(udp=True)
     offboard_api = Client(remote, system=2)
     try:
         results = call(fresh_ros_master, spawns=[
-            ("uav_2", 2, "mavlink", local, remote),
+            ("uav_2", 2, "mavlink", local, remote, list(ORIGIN)),
             ("uav_3", 3, "px4", 0, 0),
+            ("uav_6", 6, "mavlink", free_port(udp=True), other, [137.0, 8.0, 0.0]),
             ("uav_4", 4, "mavlink", local, other),  # the port uav_2 holds
-            ("uav_5", 5, "ual+mavlink", free_udp_port(), other)])
+            ("uav_5", 5, "ual+mavlink", free_port(udp=True), other)])
         assert results["uav_2"] == [True, f"spawned UAV 'uav_2' as MAVLink system 2 on UDP {local} "
                                           f"(sending to 127.0.0.1:{remote})"]
         assert results["uav_3"][0] is False and results["uav_3"][1].startswith(
             "interface: 'px4' must be one of ual, mavlink, ual+mavlink")
         assert results["uav_4"][0] is False and results["uav_4"][1].startswith(
             f"mavlink_local_port: UDP 0.0.0.0:{local} cannot be bound")
+        assert results["uav_6"][0] is False and results["uav_6"][1].startswith(
+            "mavlink_origin_geo: [137.0, 8.0, 0.0] must be [lat, lon, alt]")
         assert results["uav_5"][0] is True and results["uav_5"][1].startswith(
             "spawned UAV 'uav_5' as /uav_5/ual and MAVLink system 5")
         assert sorted(ros.getParam("/ual_ids")) == [1, 5]  # the stand-in is nobody's UAL
@@ -234,10 +235,17 @@ def test_a_mavlink_only_stand_in_has_no_ual_and_deleting_it_frees_its_port(fresh
 
         heartbeat = offboard_api.wait_for(lambda m: m.get_type() == "HEARTBEAT", "a HEARTBEAT from the stand-in")
         assert heartbeat.get_srcComponent() == 1
+        # Its GPS puts the map origin where the request said: uav_2 stands at map (6, 0, 0).
+        assert offboard_api.command(mavlink.MAV_CMD_REQUEST_MESSAGE,
+                                    mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT) == mavlink.MAV_RESULT_ACCEPTED
+        gps = offboard_api.latest.get("GLOBAL_POSITION_INT") or offboard_api.wait_for(
+            lambda m: m.get_type() == "GLOBAL_POSITION_INT", "the stand-in's position")  # telemetry waits for time
+        lat, lon, _ = enu_to_geodetic([6.0, 0.0, 0.0], ORIGIN)
+        assert gps.lat == pytest.approx(lat * 1e7, abs=2) and gps.lon == pytest.approx(lon * 1e7, abs=2)
         assert offboard_api.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1) == mavlink.MAV_RESULT_ACCEPTED
         offboard_api.wait_for(lambda m: m.get_type() == "HEARTBEAT" and offboard_api.mode()[1], "armed, while paused")
         # The refused uav_4 left nothing behind: its name spawns now, on a free port.
-        assert call(fresh_ros_master, spawns=[("uav_4", 4, "mavlink", free_udp_port(), other)])["uav_4"][0]
+        assert call(fresh_ros_master, spawns=[("uav_4", 4, "mavlink", free_port(udp=True), other)])["uav_4"][0]
         assert not port_is_free(local)
         assert call(fresh_ros_master, delete=["uav_2"])["delete uav_2"] is True
         wait_until(lambda: port_is_free(local), f"UDP {local} released by the deleted model")

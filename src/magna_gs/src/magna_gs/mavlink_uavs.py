@@ -25,9 +25,8 @@ from uav_abstraction_layer.msg import State as UalState
 from magna_common.ports import free_udp_ports
 from magna_gs.processes import end_process_group
 from magna_mavlink.fleet import Fleet, FleetUav
+from magna_sim.mavlink_telemetry import PX4_SITL_HOME
 
-# PX4 SITL's default home (Zurich), used when neither the fleet nor the world ties the map to the Earth.
-DEFAULT_ORIGIN_GEO = (47.397742, 8.545594, 488.0)
 CONNECT_TIMEOUT = 15.0  # wall s a bridge has to hear its vehicle (ual_mavlink --connect-timeout)
 READY_MARGIN = 15.0  # wall s more for the node to start and the vehicle to report a valid position
 LINK_TOPIC = "/uav_{id}/ual_mavlink/link"
@@ -52,7 +51,7 @@ def resolve_origin(fleet: Fleet | None, world_origin) -> tuple[tuple[float, floa
         return fleet.origin_geo, f"origin_geo of {fleet.source}"
     if world_origin:
         return tuple(float(v) for v in world_origin), "the world's origin_geo"
-    return DEFAULT_ORIGIN_GEO, "PX4 SITL's default home (neither the fleet nor the world has origin_geo)"
+    return PX4_SITL_HOME, "PX4 SITL's default home (neither the fleet nor the world has origin_geo)"
 
 
 def bridge_command(uav: FleetUav, mode: str, url: str, origin) -> list[str]:
@@ -67,8 +66,9 @@ def bridge_command(uav: FleetUav, mode: str, url: str, origin) -> list[str]:
 class MavlinkUavs:
     """Bridges of one mission: start, wait until ready, watch their links, stop."""
 
-    def __init__(self, fleet: Fleet, modes: dict[int, str], origin, output: str = "log"):
-        self.fleet, self.modes, self.origin, self.output = fleet, modes, origin, output
+    def __init__(self, fleet: Fleet, modes: dict[int, str], output: str = "log"):
+        self.fleet, self.modes, self.output = fleet, modes, output
+        self.origin: tuple[float, float, float] | None = None  # tied at the first bring-up, once the world is up
         self.bridges: dict[int, Bridge] = {}
         self.proxies: list[subprocess.Popen] = []  # udp_proxy processes of stand-ins with link_faults
         self.lost: dict[int, str] = {}  # UAV id -> what its bridge said when the link went
@@ -83,19 +83,20 @@ class MavlinkUavs:
     def bring_up(self, uav_id: int, spawn_stand_in) -> None:
         """Start the bridge of `uav_id` (after `spawn_stand_in(local_port, remote_port)` for a stand-in)
         and wait until its UAL reports a valid state; MavlinkUavError when the vehicle is not there."""
+        if self.origin is None:
+            self.origin, where = resolve_origin(self.fleet, rospy.get_param("/magna/world/origin_geo", None))
+            rospy.loginfo(f"MAVLink UAVs: the map origin is {self.origin} ({where})")
         uav = self.fleet.uavs[uav_id]
         url = uav.url
-        proxy = None
         if uav.stand_in:
             local, remote, listen = free_udp_ports(3)
             spawn_stand_in(local, remote)
             url = f"udpin:127.0.0.1:{remote}"  # where the stand-in sends, as PX4 SITL sends to 14540+i
             if uav.link_faults is not None:  # the bridge talks to the proxy, the proxy to the vehicle
-                proxy = subprocess.Popen(["rosrun", "magna_mavlink", "udp_proxy", "--listen", f"127.0.0.1:{listen}",
-                                          "--to", f"127.0.0.1:{local}", *uav.link_faults.proxy_arguments()],
-                                         start_new_session=True, stdout=subprocess.DEVNULL,
-                                         stderr=subprocess.DEVNULL)
-                self.proxies.append(proxy)
+                self.proxies.append(subprocess.Popen(
+                    ["rosrun", "magna_mavlink", "udp_proxy", "--listen", f"127.0.0.1:{listen}",
+                     "--to", f"127.0.0.1:{local}", *uav.link_faults.proxy_arguments()],
+                    start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
                 url = f"udpout:127.0.0.1:{listen}"
         self._subscribers.append(rospy.Subscriber(f"/uav_{uav_id}/ual/state", UalState, self._on_state, uav_id,
                                                   queue_size=1))

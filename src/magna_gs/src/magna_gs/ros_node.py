@@ -42,7 +42,7 @@ from uav_abstraction_layer.msg import State as UalState
 from magna_gs.bag_recorder import BagRecorder, mission_topics
 from magna_gs.commands import CommandPlan, CommandRefused, Param, UavStatus, plan_command
 from magna_gs.factory import ActionClients, RosStateFactory, wait_sim_seconds, world_poses
-from magna_gs.mavlink_uavs import MavlinkUavError, MavlinkUavs, resolve_origin
+from magna_gs.mavlink_uavs import MavlinkUavError, MavlinkUavs
 from magna_gs.mission.build import build_machine
 from magna_gs.mission.loader import MissionError, load_mission
 from magna_gs.processes import end_parent_launch, end_process_group
@@ -244,7 +244,7 @@ class GroundStationServices:
         """Start the bridge of a hil or real UAV (its stand-in first, when it has one); False if it is not there."""
         def spawn_stand_in(local_port: int, remote_port: int) -> None:
             answer = spawn(interface="mavlink", mavlink_local_port=local_port, mavlink_remote_port=remote_port,
-                           **request)
+                           mavlink_origin_geo=list(self.mavlink.origin), **request)
             if not answer.success:
                 raise MavlinkUavError(f"UAV {uav_id}: magna_sim refused its PX4-like stand-in: {answer.message}")
             self.spawned.append(uav_id)
@@ -424,9 +424,8 @@ class GroundStation:
         problems = check_against_mission(fleet, modes)
         if problems:
             raise MissionError("; ".join(problems))
-        origin, where = resolve_origin(fleet, rospy.get_param("/magna/world/origin_geo", None))
-        rospy.loginfo(f"MAVLink UAVs {flown} from {fleet.source}; map origin {origin} ({where})")
-        mavlink = MavlinkUavs(fleet, modes, origin, rospy.get_param("~manager_output", "log"))
+        rospy.loginfo(f"MAVLink UAVs {flown} from {fleet.source}")
+        mavlink = MavlinkUavs(fleet, modes, rospy.get_param("~manager_output", "log"))
         mavlink.on_link_lost = self._on_link_lost
         self.services.mavlink = mavlink
 

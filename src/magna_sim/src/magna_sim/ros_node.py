@@ -275,9 +275,14 @@ class SimNode:
 
     # --- models (simulation thread) --------------------------------------------------------------------------
     def spawn_uav(self, name, uav_id, airframe, flight_model, position, yaw, rgba=(0.2, 0.2, 0.25, 1.0),
-                  interface="ual", mavlink_local_port=0, mavlink_remote_port=0):
+                  interface="ual", mavlink_local_port=0, mavlink_remote_port=0, mavlink_origin_geo=()):
         """interface: "ual" (a UAL server), "mavlink" (only the PX4-like MAVLink vehicle: the stand-in for a
-        hardware-in-the-loop autopilot, not in /ual_ids) or "ual+mavlink" (both)."""
+        hardware-in-the-loop autopilot, not in /ual_ids) or "ual+mavlink" (both). mavlink_origin_geo: where the
+        map origin is on the Earth for the MAVLink vehicle's GPS, when the caller ties the map to it."""
+        origin = tuple(float(v) for v in mavlink_origin_geo)
+        if origin and (len(origin) != 3 or not all(math.isfinite(v) for v in origin)
+                       or not (-90 <= origin[0] <= 90 and -180 <= origin[1] <= 180)):
+            raise SpawnError(f"mavlink_origin_geo: {list(origin)} must be [lat, lon, alt] (degrees, degrees, m)")
         interface = interface or "ual"
         if interface not in INTERFACES:
             raise SpawnError(f"interface: '{interface}' must be one of {', '.join(INTERFACES)} (or empty for ual)")
@@ -301,7 +306,7 @@ class SimNode:
             except SpawnError:
                 self.world.delete(name)
                 raise
-            self.mavlink[uav_id] = (endpoint, self._mavlink_vehicle(vehicle, with_ual))
+            self.mavlink[uav_id] = (endpoint, self._mavlink_vehicle(vehicle, with_ual, origin))
             rospy.loginfo(f"magna_sim: UAV {uav_id} speaks MAVLink (system {uav_id}) on UDP {endpoint.local_port}, "
                           f"sending to 127.0.0.1:{endpoint.remote[1]}")
         if self.lockstep is not None:
@@ -336,9 +341,10 @@ class SimNode:
         except EndpointError as err:
             raise SpawnError(str(err)) from None
 
-    def _mavlink_vehicle(self, vehicle, with_ual: bool) -> MavlinkVehicle:
+    def _mavlink_vehicle(self, vehicle, with_ual: bool, origin=()) -> MavlinkVehicle:
         battery = self.world.batteries[vehicle.uav_id]
-        return MavlinkVehicle(vehicle, vehicle.uav_id, self.settings.map_origin_geo or PX4_SITL_HOME, self.world.time,
+        origin = origin or self.settings.map_origin_geo or PX4_SITL_HOME
+        return MavlinkVehicle(vehicle, vehicle.uav_id, tuple(origin), self.world.time,
                               ual=self.world.ual[vehicle.uav_id] if with_ual else None,
                               battery=lambda: (battery.voltage, battery.percentage))
 
@@ -377,7 +383,7 @@ class SimNode:
                 self.spawn_uav(req.name, int(req.uav_id), req.airframe or self.settings.model,
                                req.flight_model or self.settings.flight_model, position,
                                quaternion_yaw(pose.orientation), rgba, req.interface, req.mavlink_local_port,
-                               req.mavlink_remote_port)
+                               req.mavlink_remote_port, req.mavlink_origin_geo)
                 return f"spawned UAV '{req.name}' as {self._served_as(int(req.uav_id))}"
             if req.kind == "obstacle":
                 q = pose.orientation
