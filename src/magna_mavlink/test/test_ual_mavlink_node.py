@@ -48,7 +48,7 @@ def node(rospy_node, ros_master):
     port = free_port(udp=True)
     fake = FakeAutopilot(f"udpout:127.0.0.1:{port}", system_id=UAV).start()
     process = ros_master.spawn(["rosrun", "magna_mavlink", "ual_mavlink", "--id", str(UAV), "--url",
-                                f"udpin:127.0.0.1:{port}", "--heartbeat-timeout", "0.5"],
+                                f"udpin:127.0.0.1:{port}", "--heartbeat-timeout", "1.5"],
                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         yield fake, process, f"udpin:127.0.0.1:{port}"
@@ -92,7 +92,7 @@ def test_the_ual_api_over_a_mavlink_link(rospy_node, node):
     fake.pilot_selects("POSCTL")  # a safety pilot takes over
     wait_until(lambda: state.msg.state == State.FLYING_MANUAL, "FLYING_MANUAL", WAIT)
     fake.heartbeat = False  # the link goes
-    lost = f"no heartbeat from {url} for 0.5 s (nor any other message)"
+    lost = f"no heartbeat from {url} for 1.5 s (nor any other message)"
     wait_until(lambda: link.msg.data == lost, "the link topic to say so", WAIT)
     wait_until(lambda: state.msg.state == State.UNINITIALIZED, "UNINITIALIZED", WAIT)
     fake.heartbeat = True
