@@ -1,6 +1,7 @@
 """The ual_mavlink node as users start it, against the scripted autopilot: exit 2 naming the URL when nothing
-answers, the UAL topics and services under /uav_{id}/ual/ with magna_sim's frame ids, /ual_ids, the link topic
-and UNINITIALIZED when the HEARTBEAT stops, a pilot's take-over, and its id out of /ual_ids when it ends."""
+answers, the UAL topics and services under /uav_{id}/ual/ with magna_sim's frame ids, /ual_ids, the telemetry it
+asks for, the link topic and UNINITIALIZED when the autopilot falls silent, a pilot's take-over, and its id out of
+/ual_ids when it ends."""
 import subprocess
 
 import pytest
@@ -8,6 +9,7 @@ from fake_autopilot import FakeAutopilot
 
 from magna_common.ports import free_port
 from magna_gs.processes import end_process_group
+from magna_mavlink.link import mavlink
 from tests.support import wait_until
 
 UAV = 47  # an id no other test on the session's master uses
@@ -80,6 +82,9 @@ def test_the_ual_api_over_a_mavlink_link(rospy_node, node):
     assert (pose.msg.header.frame_id, velocity.msg.header.frame_id) == ("map", "map")
     assert (odom.msg.header.frame_id, odom.msg.child_frame_id) == ("map", f"uav_{UAV}/base_link")
     assert link.msg.data == "" and battery.msg.percentage == pytest.approx(0.8)
+    wait_until(lambda: any(c.command == mavlink.MAV_CMD_SET_MESSAGE_INTERVAL and c.param1 == 32
+                           and c.param2 == pytest.approx(1e6 / 30) for c in list(fake.commands)),
+               "LOCAL_POSITION_NED asked for at 30 Hz (MAV_CMD_SET_MESSAGE_INTERVAL)", WAIT)
 
     rospy.wait_for_service(ns + "land", timeout=WAIT)
     with pytest.raises(rospy.ServiceException, match=f"land refused: UAV {UAV} is LANDED_ARMED; land needs "
