@@ -232,10 +232,12 @@ def request_telemetry(link: MavlinkLink, rospy) -> None:
             continue
         if result != mavlink.MAV_RESULT_ACCEPTED:
             rospy.logdebug(f"ual_mavlink: {name} at {rate:g} Hz not accepted ({result}); keeping its own rate")
-    try:
-        link.request_message(mavlink.MAVLINK_MSG_ID_HOME_POSITION)
-    except Exception:  # noqa: BLE001
-        pass
+    # Where the autopilot's local frame starts, and its home: the map and geo waypoints are placed with them.
+    for message_id in (mavlink.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN, mavlink.MAVLINK_MSG_ID_HOME_POSITION):
+        try:
+            link.request_message(message_id)
+        except Exception:  # noqa: BLE001 - as above
+            pass
 
 
 def describe_arming(options: Options, autopilot: str) -> str:
