@@ -7,6 +7,7 @@ joins this test process to that master (rospy allows one node per process).
 stop nodes as subprocesses.
 """
 import os
+import signal
 import sys
 from pathlib import Path
 
@@ -23,6 +24,18 @@ def _ensure_workspace_on_path():
 
 
 _ensure_workspace_on_path()
+
+
+def _let_ctrl_c_through():
+    # A test run started in the background by a shell without job control (`make test &` in a script,
+    # a CI step) inherits SIGINT ignored, and every process it starts would too: the tests of Ctrl-C
+    # (TensorBoard, launches, the documented [background] commands) would then hang on processes that
+    # cannot hear it. A handler here is reset to the default in each child at exec.
+    if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
+_let_ctrl_c_through()
 
 
 @pytest.fixture(scope="session")
