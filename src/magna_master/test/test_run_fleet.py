@@ -1,5 +1,6 @@
-"""`magna run --fleet`: a mission with hil or real UAVs needs a fitting fleet file and runs at real time;
-anything that does not fit stops the batch before it starts, with one line naming the file and the fix."""
+"""`magna run --fleet`: a mission with hil or real UAVs needs a fitting fleet file, and runs at real time when
+one is an autopilot outside the simulator; anything that does not fit stops the batch before it starts, with
+one line naming the file and the fix."""
 from pathlib import Path
 
 import pytest
@@ -21,11 +22,22 @@ def run(tmp_path, capsys, *more):
     return status, capsys.readouterr()
 
 
-def test_a_fitting_fleet_runs_at_real_time_and_reaches_the_launch(capsys):
-    fleet, rtf = check_fleet(MISSION_FILE, STAND_IN, "max")
-    assert fleet == STAND_IN.resolve() and rtf == "1"
-    assert "UAVs [3] fly over MAVLink: the simulation runs at real time" in capsys.readouterr().out
-    assert check_fleet(MISSION_FILE, STAND_IN, "1.0") == (STAND_IN.resolve(), "1")
+def test_an_autopilot_outside_the_simulator_makes_the_run_real_time(tmp_path, capsys):
+    real = tmp_path / "fleet.yaml"
+    real.write_text("uavs: {3: {url: 'udpin:0.0.0.0:14542'}}")
+    fleet, rtf = check_fleet(MISSION_FILE, real, "max")
+    assert fleet == real.resolve() and rtf == "1"
+    assert "UAVs [3] fly over MAVLink outside the simulator: the simulation runs at real time" in \
+        capsys.readouterr().out
+    assert check_fleet(MISSION_FILE, real, "1.0") == (real.resolve(), "1")
+    with pytest.raises(BatchError, match=r"--rtf 4: UAVs \[3\] are autopilots outside the simulator"):
+        check_fleet(MISSION_FILE, real, "4")
+
+
+def test_stand_ins_fly_in_simulated_time_at_any_factor(capsys):
+    assert check_fleet(MISSION_FILE, STAND_IN, "max") == (STAND_IN.resolve(), "max")
+    assert check_fleet(MISSION_FILE, STAND_IN, "4") == (STAND_IN.resolve(), "4")
+    assert "real time" not in capsys.readouterr().out
 
 
 def test_the_fleet_file_goes_to_the_simulation_launch():
@@ -39,7 +51,6 @@ def test_the_fleet_file_goes_to_the_simulation_launch():
 
 @pytest.mark.parametrize("fleet, rtf, message", [
     (None, "max", "UAVs [3] are hil or real; give --fleet FILE"),
-    (STAND_IN, "4", "--rtf 4: UAVs [3] are hil or real and fly in real time; give --rtf 1"),
     (Path("no_such_fleet.yaml"), "max", "no_such_fleet.yaml: no such file"),
 ])
 def test_a_missing_or_unfitting_fleet_stops_the_batch(fleet, rtf, message):
@@ -62,5 +73,5 @@ def test_magna_run_refuses_before_anything_starts(tmp_path, capsys):
     assert out.err.startswith("magna run: ") and "give --fleet FILE" in out.err
     assert len(out.err.strip().splitlines()) == 1
     assert not (tmp_path / "data").exists()
-    status, out = run(tmp_path, capsys, "--fleet", str(STAND_IN), "--rtf", "10")
-    assert status == 2 and "give --rtf 1" in out.err and not (tmp_path / "data").exists()
+    status, out = run(tmp_path, capsys, "--fleet", str(STAND_IN), "--rtf", "fast")
+    assert status == 2 and "--rtf 'fast'" in out.err and not (tmp_path / "data").exists()

@@ -89,7 +89,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--fleet", type=Path, metavar="FILE",
                         help="the fleet file (YAML) of the mission's hil and real UAVs: where each autopilot is "
                              "(MAVLink URL), its arming policy, or a simulated PX4-like stand-in; needed when the "
-                             "mission has hil or real UAVs, which then run at real time (--rtf 1). Format: "
+                             "mission has hil or real UAVs; autopilots outside the simulator make it run at real "
+                             "time (--rtf 1), stand-ins do not. Format: "
                              "src/magna_mavlink/README.md, 'The fleet file'")
     parser.add_argument("--utm-plan", type=Path, metavar="FILE",
                         help="a UTM flight-plan file (JSON) for missions that follow paths 'from utm'; the UTM "
@@ -163,8 +164,9 @@ def build_config(args):
 def check_fleet(mission_file: Path, fleet_file: Path | None, rtf: str) -> tuple[Path | None, str]:
     """The fleet file and the real-time factor for this mission; BatchError when they do not fit it.
 
-    A mission with hil or real UAVs needs a fleet file and runs at real time: their autopilots, links and
-    timeouts live in wall time. The default --rtf (max) then becomes 1; any other factor is refused."""
+    A mission with hil or real UAVs needs a fleet file. It runs at real time when one of them is an autopilot
+    outside the simulator (its links and timeouts live in wall time): the default --rtf (max) then becomes 1,
+    any other factor is refused. Stand-ins fly in simulated time, so a fleet of stand-ins keeps --rtf."""
     from magna_gs.mission.loader import load_mission
     from magna_master.batch import BatchError, parse_rtf
     from magna_mavlink.fleet import FleetError, check_against_mission, load_fleet, mavlink_uavs
@@ -187,12 +189,14 @@ def check_fleet(mission_file: Path, fleet_file: Path | None, rtf: str) -> tuple[
     if problems:
         raise BatchError(f"--fleet: {problems[0]}" + (f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""))
     factor = parse_rtf(rtf)
-    if factor == "max":
-        print(f"magna run: UAVs {flown} fly over MAVLink: the simulation runs at real time (--rtf 1)", flush=True)
+    outside = [i for i in flown if not fleet.uavs[i].stand_in]
+    if outside and factor == "max":
+        print(f"magna run: UAVs {outside} fly over MAVLink outside the simulator: the simulation runs at real "
+              f"time (--rtf 1)", flush=True)
         factor = "1"
-    elif float(factor) != 1.0:
-        raise BatchError(f"--rtf {rtf}: UAVs {flown} are hil or real and fly in real time; give --rtf 1 "
-                         f"(or leave it out)")
+    elif outside and float(factor) != 1.0:
+        raise BatchError(f"--rtf {rtf}: UAVs {outside} are autopilots outside the simulator and fly in real time; "
+                         f"give --rtf 1 (or leave it out)")
     return fleet_file.expanduser().resolve(), factor
 
 
