@@ -121,8 +121,8 @@ class MavlinkUavs:
                 return
             if process.poll() is not None:
                 why = _last_line(bridge.errors) or f"ual_mavlink exited with code {process.returncode}"
-                raise MavlinkUavError(f"UAV {uav_id} ({self.modes[uav_id]}): no vehicle at {url}: {why}. Check "
-                                      f"the link with: magna doctor --mavlink {url}")
+                hint = "" if "magna doctor" in why else f". Check the link with: magna doctor --mavlink {url}"
+                raise MavlinkUavError(f"UAV {uav_id} ({self.modes[uav_id]}): no vehicle at {url}: {why}{hint}")
             time.sleep(0.05)
         raise MavlinkUavError(f"UAV {uav_id} ({self.modes[uav_id]}): the vehicle at {url} gave no valid position "
                               f"within {CONNECT_TIMEOUT + READY_MARGIN:g} s (its UAL stays UNINITIALIZED); check "
