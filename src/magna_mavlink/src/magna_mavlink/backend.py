@@ -37,6 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from magna_common import geo
+from magna_common.ual_commands import CommandRefused, finite_vector, require_finite
 
 from . import autopilot as ap
 from . import frames
@@ -61,10 +62,6 @@ AUTO, PILOT = "auto", "pilot"
 LAND_MODE = {ap.PX4: "AUTO.LAND", ap.ARDUPILOT: "LAND"}
 GO_TO = "go_to_waypoint"
 MODE_RETRY = 0.3  # s between requests of a mode the autopilot did not accept yet
-
-
-class CommandRefused(ValueError):
-    """A UAL command that cannot be done now; the message is for the caller."""
 
 
 @dataclass(frozen=True)
@@ -271,7 +268,7 @@ class UalBackend:
 
     # --- commands -------------------------------------------------------------------------------------------------
     def take_off(self, height: float, blocking: bool) -> None:
-        _require_finite("height", height)
+        require_finite("height", height)
         if height <= 0.0:
             raise CommandRefused(f"take_off: height must be positive, got {height}")
         with self._lock:
@@ -330,8 +327,8 @@ class UalBackend:
                 self._in_control = False
 
     def go_to(self, frame_id: str, position, yaw: float, blocking: bool) -> None:
-        position = _finite_vector("waypoint.pose.position", position)
-        _require_finite("waypoint orientation (yaw)", yaw)
+        position = finite_vector("waypoint.pose.position", position)
+        require_finite("waypoint orientation (yaw)", yaw)
         with self._lock:
             self._require(FLYING_AUTO, GO_TO)
             target = self._to_map(frame_id, position)
@@ -357,8 +354,8 @@ class UalBackend:
         self.go_to("map", target, yaw, blocking)
 
     def set_pose(self, frame_id: str, position, yaw: float) -> None:
-        position = _finite_vector("set_pose position", position)
-        _require_finite("set_pose orientation (yaw)", yaw)
+        position = finite_vector("set_pose position", position)
+        require_finite("set_pose orientation (yaw)", yaw)
         with self._lock:
             self._require(FLYING_AUTO, "set_pose")
             target = self._to_map(frame_id, position)
@@ -366,8 +363,8 @@ class UalBackend:
             self.stream.hold(target, yaw)
 
     def set_velocity(self, velocity, yaw_rate: float) -> None:
-        velocity = _finite_vector("set_velocity linear", velocity)
-        _require_finite("set_velocity angular.z", yaw_rate)
+        velocity = finite_vector("set_velocity linear", velocity)
+        require_finite("set_velocity angular.z", yaw_rate)
         with self._lock:
             self._require(FLYING_AUTO, "set_velocity")
             self._replace_go_to()
@@ -521,15 +518,3 @@ class UalBackend:
         self._closed = True
         with self._ticked:
             self._ticked.notify_all()
-
-
-def _require_finite(name: str, value: float) -> None:
-    if not math.isfinite(value):
-        raise CommandRefused(f"{name}: {value} is not a finite number")
-
-
-def _finite_vector(name: str, values) -> np.ndarray:
-    vector = np.asarray(values, dtype=float)
-    if vector.shape != (3,) or not np.all(np.isfinite(vector)):
-        raise CommandRefused(f"{name}: {np.ravel(vector).tolist()} is not three finite numbers")
-    return vector

@@ -28,6 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from magna_common.ual_commands import CommandRefused, finite_vector, require_finite
+
 from . import fixed_wing
 from .vehicle import Manoeuvre, Setpoint, SetpointMode, Vehicle
 
@@ -40,10 +42,6 @@ class UalState(enum.IntEnum):  # values of uav_abstraction_layer/State
     FLYING_AUTO = 4
     FLYING_MANUAL = 5
     LANDING = 6
-
-
-class CommandRefused(ValueError):
-    """A UAL command that cannot be done now; the message is for the caller."""
 
 
 @dataclass(frozen=True)
@@ -89,7 +87,7 @@ class UalLogic:
 
     # --- commands --------------------------------------------------------------------------------------------
     def take_off(self, height: float) -> None:
-        _require_finite("height", height)
+        require_finite("height", height)
         if height <= 0.0:
             raise CommandRefused(f"take_off: height must be positive, got {height}")
         self._require(UalState.LANDED_ARMED, "take_off")
@@ -104,8 +102,8 @@ class UalLogic:
         self._start_landing()
 
     def go_to(self, position, yaw: float) -> None:
-        position = _finite_vector("waypoint.pose.position", position)
-        _require_finite("waypoint orientation (yaw)", yaw)
+        position = finite_vector("waypoint.pose.position", position)
+        require_finite("waypoint orientation (yaw)", yaw)
         self._require(UalState.FLYING_AUTO, "go_to_waypoint")
         self._command(Setpoint(SetpointMode.POSITION, position=position, yaw=yaw))
         self._watch()
@@ -116,14 +114,14 @@ class UalLogic:
 
     def set_pose(self, position, yaw: float) -> None:
         """Streamed position setpoint; refused (the ROS layer only warns) unless FLYING_AUTO."""
-        position = _finite_vector("set_pose position", position)
-        _require_finite("set_pose orientation (yaw)", yaw)
+        position = finite_vector("set_pose position", position)
+        require_finite("set_pose orientation (yaw)", yaw)
         self._require(UalState.FLYING_AUTO, "set_pose")
         self._command(Setpoint(SetpointMode.POSITION, position=position, yaw=yaw))
 
     def set_velocity(self, velocity, yaw_rate: float) -> None:
-        velocity = _finite_vector("set_velocity linear", velocity)
-        _require_finite("set_velocity angular.z", yaw_rate)
+        velocity = finite_vector("set_velocity linear", velocity)
+        require_finite("set_velocity angular.z", yaw_rate)
         self._require(UalState.FLYING_AUTO, "set_velocity")
         self._command(Setpoint(SetpointMode.VELOCITY, velocity=velocity, yaw_rate=yaw_rate))
         self._last_velocity_time = self._time
@@ -236,15 +234,3 @@ class UalLogic:
                 f"{settings.stuck_time:g} s of simulated time (nearest {approach.nearest:.2f} m; arrival needs "
                 f"{self.arrival_radius:g} m): something blocks it or the target is out of reach. It keeps flying "
                 f"toward the target until another command")
-
-
-def _require_finite(name: str, value: float) -> None:
-    if not math.isfinite(value):
-        raise CommandRefused(f"{name}: {value} is not a finite number")
-
-
-def _finite_vector(name: str, values) -> np.ndarray:
-    vector = np.asarray(values, dtype=float)
-    if vector.shape != (3,) or not np.all(np.isfinite(vector)):
-        raise CommandRefused(f"{name}: {np.ravel(vector).tolist()} is not three finite numbers")
-    return vector
