@@ -59,6 +59,11 @@ def test_experiment_ii_flies_sitl_and_hil_uavs_together_and_records_them(tmp_pat
     assert result["leftover_processes_killed"] == []
     for uav_id in (1, 2, 3):  # the MAVLink UAV is recorded like the simulated ones
         assert highest(folder, uav_id) > 2.5, f"UAV {uav_id} flew"
+    # The simulated UAVs' managers see the MAVLink UAV (their evaluator measures its gap from this view),
+    # and its manager sees them.
+    for uav_id, other in ((1, 3), (2, 3), (3, 1)):
+        seen = [float(row[f"uav{other}.pos.z"]) for row in rows(folder / f"uav_{uav_id}.csv")]
+        assert max(seen) > 2.5, f"UAV {uav_id} saw UAV {other} fly"
     assert (folder / "simulation.bag").stat().st_size > 0
 
 
