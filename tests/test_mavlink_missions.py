@@ -27,9 +27,9 @@ MISSION = "Gym/Experiment_II_SITL_HIL"
 FLEETS = ROOT / "fleets"
 
 
-def magna_run(fleet: Path, data_root: Path, rtf: str = "1") -> subprocess.CompletedProcess:
+def magna_run(fleet: Path, data_root: Path, rtf: str = "1", report: bool = False) -> subprocess.CompletedProcess:
     command = [str(ROOT / "magna"), "run", "--world", WORLD, "--mission", MISSION, "--fleet", str(fleet),
-               "--data-root", str(data_root), "--time-limit", "300", "--no-report", "--rtf", rtf]
+               "--data-root", str(data_root), "--time-limit", "300", "--rtf", rtf, *([] if report else ["--no-report"])]
     done = subprocess.run(command, capture_output=True, text=True, cwd=ROOT, stdin=subprocess.DEVNULL)
     assert done.returncode == 0, f"{' '.join(command)}\n{done.stdout}\n{done.stderr}"
     return done
@@ -53,7 +53,7 @@ def highest(folder: Path, uav_id: int) -> float:
 def test_experiment_ii_flies_sitl_and_hil_uavs_together_and_records_them(tmp_path):
     # A stand-in flies in simulated time, so this one may go faster than real time (magna_sim's lockstep
     # keeps the simulation within reach of ual_mavlink's set-point stream).
-    magna_run(FLEETS / "stand_in_hil.yaml", tmp_path, rtf="max")
+    magna_run(FLEETS / "stand_in_hil.yaml", tmp_path, rtf="max", report=True)
     folder, result = the_simulation(tmp_path)
     assert result["success"] is True and result["outcome"] == "completed", result["message"]
     assert result["leftover_processes_killed"] == []
@@ -65,6 +65,7 @@ def test_experiment_ii_flies_sitl_and_hil_uavs_together_and_records_them(tmp_pat
         seen = [float(row[f"uav{other}.pos.z"]) for row in rows(folder / f"uav_{uav_id}.csv")]
         assert max(seen) > 2.5, f"UAV {uav_id} saw UAV {other} fly"
     assert (folder / "simulation.bag").stat().st_size > 0
+    assert (folder / "report.html").stat().st_size > 0  # the report reads a mixed mission as any other
 
 
 def test_through_a_lossy_slow_link_the_mission_still_succeeds(tmp_path):
