@@ -141,7 +141,7 @@ class MavlinkUavs:
         if first:
             self.on_link_lost(uav_id, msg.data)
 
-    def stop(self, grace: float = 5.0) -> None:
+    def stop(self, grace: float = 10.0) -> None:
         """End every bridge (after the managers: their last hover goes through the bridge)."""
         for subscriber in self._subscribers:
             subscriber.unregister()

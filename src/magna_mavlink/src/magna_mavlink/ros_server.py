@@ -293,11 +293,9 @@ def main(argv=None) -> int:
         return 2
     server = UalServer(backend, tf=options.tf)
 
-    def stop():
-        backend.close()
-        unregister_id(rospy, options.uav_id)
-
-    rospy.on_shutdown(stop)
+    # rospy runs shutdown hooks inside its signal handler, on top of whatever the main thread was doing:
+    # only wake the calls that wait there; the master is told below, once the loop has ended.
+    rospy.on_shutdown(backend.close)
     threading.Thread(target=request_telemetry, args=(link, rospy), name="telemetry requests", daemon=True).start()
     rate = rospy.Rate(options.pub_rate)
     try:
@@ -311,7 +309,8 @@ def main(argv=None) -> int:
     except rospy.ROSInterruptException:
         pass
     finally:
-        stop()
+        backend.close()
+        unregister_id(rospy, options.uav_id)
         server.shutdown()
         link.close()
     rospy.loginfo(f"ual_mavlink: UAV {options.uav_id} stopped ({NAMES[backend.state]}); id {options.uav_id} "
