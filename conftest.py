@@ -40,7 +40,7 @@ _let_ctrl_c_through()
 
 @pytest.fixture(scope="session")
 def ros_master(tmp_path_factory):
-    from magna_master.ros_master import RosMaster
+    from magna_common.ros_master import RosMaster
 
     master = RosMaster(log_dir=tmp_path_factory.mktemp("ros_log"))
     with master:
@@ -59,7 +59,7 @@ def rospy_node(ros_master):
 
 @pytest.fixture
 def fresh_ros_master(tmp_path):
-    from magna_master.ros_master import RosMaster
+    from magna_common.ros_master import RosMaster
 
     with RosMaster(log_dir=tmp_path / "ros_log") as master:
         yield master

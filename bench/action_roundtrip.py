@@ -129,7 +129,7 @@ def main(argv: list[str] | None = None) -> int:
                              "ours-server (our server, stock client), ours-client (stock server, our client)")
     args = parser.parse_args(argv)
 
-    from magna_master.ros_master import RosMaster
+    from magna_common.ros_master import RosMaster
 
     with tempfile.TemporaryDirectory(prefix="action_bench_") as log_dir, RosMaster(log_dir=Path(log_dir)) as master:
         os.environ.update(master.env())

@@ -1,7 +1,7 @@
 """Command-to-motion latency, as the original thesis's Experiment III, with 1, 2, 3 and 10 UAVs.
 
 Per fleet size N, in a process of its own (rospy allows one node per process):
-  * a private ROS master (magna_master.ros_master.RosMaster) and `roslaunch magna_gs simulation.launch`
+  * a private ROS master (magna_common.ros_master.RosMaster) and `roslaunch magna_gs simulation.launch`
     at rtf 1.0 (real time), no bag, no data, button_timeout 0, in the world Gym/Central_Obstacle_Torus;
   * its mission (generated into a temporary folder): N UAVs spawned on two rows of pads at the ground
     station, all take off to 3 m, then a `wait` for the operator's button, forever;
@@ -163,8 +163,8 @@ class ClockWatch:
 
 
 def measure_fleet(n: int, args, folder: Path) -> dict:
-    from magna_master.ros_master import RosMaster
-    from magna_master.supervisor import TOKEN_ENV, kill_tagged
+    from magna_common.processes import TOKEN_ENV, kill_tagged
+    from magna_common.ros_master import RosMaster
 
     mission_file = folder / f"{n}UAVs_Hover.json"
     mission_file.write_text(json.dumps(hover_mission(n), indent=1))

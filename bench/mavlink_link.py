@@ -118,7 +118,7 @@ def start_burners(master, count: int) -> list[subprocess.Popen]:
 
 
 def end_burners(burners: list[subprocess.Popen]) -> None:
-    from magna_gs.processes import end_process_group
+    from magna_common.processes import end_process_group
 
     for burner in burners:
         end_process_group(burner, grace=2.0)
@@ -230,7 +230,7 @@ def latency_trials(uavs: list[Uav], args, rng: random.Random) -> dict[int, dict]
 
 def measure(args, folder: Path) -> dict:
     from magna_common.ports import free_udp_ports
-    from magna_master.ros_master import RosMaster
+    from magna_common.ros_master import RosMaster
 
     log = open(folder / "processes.log", "wb")
     quiet = {"stdout": log, "stderr": log, "stdin": subprocess.DEVNULL}

@@ -72,7 +72,7 @@ def percentile(values: list[float], q: float) -> float:
 
 def service_round_trips(calls: int) -> dict[str, list[float]]:
     """Wall-clock round trips (s) of both services against orca3d_server on a private master."""
-    from magna_master.ros_master import RosMaster
+    from magna_common.ros_master import RosMaster
 
     with tempfile.TemporaryDirectory(prefix="orca_bench_") as log_dir, RosMaster(log_dir=Path(log_dir)) as master:
         master.spawn(["rosrun", "magna_orca_cpp", "orca3d_server"], stdout=subprocess.DEVNULL)

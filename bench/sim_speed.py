@@ -67,7 +67,7 @@ def node_real_time_factor(uavs: int, seconds: float, subscribe: bool) -> float:
     from rosgraph_msgs.msg import Clock
     from uav_abstraction_layer.msg import State
 
-    from magna_master.ros_master import RosMaster
+    from magna_common.ros_master import RosMaster
 
     with tempfile.TemporaryDirectory() as logs, RosMaster(log_dir=Path(logs)) as master:
         os.environ.update(master.env())

@@ -42,7 +42,7 @@ def wait_all(clients, limit: float) -> list:
 
 
 def fly_fleet(n: int, rate: float, folder: Path) -> dict:
-    from magna_master.ros_master import RosMaster
+    from magna_common.ros_master import RosMaster
 
     ids = list(range(1, n + 1))
     with RosMaster(log_dir=folder / "ros_log") as master:

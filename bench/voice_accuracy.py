@@ -114,7 +114,7 @@ def spoken_known_phrasing(n, recognizer):
 
 
 def latency(n, recognizer):
-    from magna_master.ros_master import RosMaster
+    from magna_common.ros_master import RosMaster
 
     print(f"\n== latency, end of utterance -> the ground station receives the command ({n} utterances, "
           "streamed in real time; target <= 1.5 s)")

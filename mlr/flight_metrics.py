@@ -9,6 +9,7 @@ import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from magna_common.files import write_text_atomically
 from mlr.nn_mission import FlyError
 
 TARGET_RATIO = 0.95  # the project's target: missions flown by the network collision-free at >= 95% of ORCA's rate
@@ -223,13 +224,12 @@ def draw_comparison(comparison: Comparison, path: Path) -> Path:
 
 def write_comparison(comparison: Comparison, out: Path) -> list[Path]:
     """comparison.md, comparison.json and comparison.png in `out`."""
-    from magna_master.storage import atomic_write_text
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     md, js = out / "comparison.md", out / "comparison.json"
-    atomic_write_text(md, comparison.markdown())
-    atomic_write_text(js, json.dumps(comparison.to_json(), indent=2) + "\n")
+    write_text_atomically(md, comparison.markdown(), overwrite=True)
+    write_text_atomically(js, json.dumps(comparison.to_json(), indent=2) + "\n", overwrite=True)
     return [md, js, draw_comparison(comparison, out / "comparison.png")]
 
 

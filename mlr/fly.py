@@ -33,6 +33,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from magna_common.cli_vocabulary import add_output, add_rtf, add_search_path
+from magna_common.errors import UsageError
 from mlr.flight_metrics import Comparison, read_batch, write_comparison
 from mlr.nn_mission import VARIANT_SUFFIX, Change, FlyError, mission_roles, nn_variant, write_variant
 
@@ -275,7 +276,6 @@ def fly(plan: FlyPlan) -> int:
 def run(args) -> int:
     from magna_master import storage
     from magna_master.batch import BatchError
-    from magna_master.cli import UsageError
 
     try:
         plan = prepare(args)
@@ -286,8 +286,6 @@ def run(args) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """`python -m mlr.fly` (in the workspace's environment): the subcommand on its own."""
-    from magna_master.cli import UsageError
-
     parser = argparse.ArgumentParser(prog="fly", description=HELP)
     add_arguments(parser)
     args = parser.parse_args(argv)

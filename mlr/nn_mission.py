@@ -9,6 +9,8 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
+from magna_common.files import write_text_atomically
+
 ORCA_NAMES = ("orca3", "orca3d")
 NN_NAME = "neural_network"
 # The NAI's default neighbour distance (magna_uav.nai.inputs.DEFAULT_NEIGHBOR_DIST, ORCA-3D's default);
@@ -135,7 +137,6 @@ def variant_path(out: Path, mission: str, submission: str) -> Path:
 
 def write_variant(out: Path, mission: str, submission: str, variant: dict, overwrite: bool = False) -> Path:
     """Write the variant atomically; an existing different file is kept (FlyError) unless `overwrite`."""
-    from magna_master.storage import atomic_write_text
 
     path = variant_path(out, mission, submission)
     text = json.dumps(variant, indent=4) + "\n"
@@ -150,7 +151,7 @@ def write_variant(out: Path, mission: str, submission: str, variant: dict, overw
             raise FlyError(f"{path} exists and differs from this network's mission; nothing was started. Pass "
                            "--overwrite to replace it, or choose another -o/--output or --name")
     path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(path, text)
+    write_text_atomically(path, text, overwrite=True)
     return path
 
 

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from magna_uav.airframes import AirframeError, load_airframe
+from magna_common.airframes import AirframeError, load_airframe
 from magna_uav.nai.inputs import ROLE_BLOCKS, assemble_inputs, input_names
 from magna_uav.nai.neural import prepare_depth
 from magna_uav.recorder import depth_path, read_csv, read_depth

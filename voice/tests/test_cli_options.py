@@ -59,7 +59,7 @@ rospy.spin()
 @pytest.mark.timeout(240)
 def test_the_assistant_waits_for_a_mission_that_is_still_starting(tmp_path):
     from magna_common.ports import free_port
-    from magna_master.ros_master import RosMaster
+    from magna_common.ros_master import RosMaster
 
     # the fixtures' RosMaster, started by hand: the master must come up after the assistant, on a port known before
     port = free_port()

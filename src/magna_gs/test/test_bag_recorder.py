@@ -8,8 +8,8 @@ import time
 
 import pytest
 
+from magna_common.processes import end_process_group
 from magna_gs.bag_recorder import BagRecorder, mission_topics
-from magna_gs.processes import end_process_group
 
 RATE = 50.0  # Hz of the test publisher
 _serial = itertools.count(1)  # topics and node names of their own per test

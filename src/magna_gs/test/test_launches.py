@@ -136,7 +136,7 @@ def test_a_node_the_ground_station_starts_gets_no_parameters_of_an_earlier_run(r
 
 
 def test_a_node_not_started_by_roslaunch_does_not_end_anything():
-    from magna_gs.processes import end_parent_launch, parent_roslaunch
+    from magna_common.processes import end_parent_launch, parent_roslaunch
 
     assert parent_roslaunch() is None  # pytest's parent is a shell
     assert end_parent_launch(timeout=0.1) is False

@@ -25,7 +25,7 @@ def stand_in_command(mode: str = "ok", sleep: float = 0.2, fail_seeds: str = "",
 
 
 def tagged(token: str) -> list[tuple[int, str]]:
-    from magna_master.supervisor import tagged_processes
+    from magna_common.processes import tagged_processes
 
     return tagged_processes(LEAK_ENV, token, exclude={os.getpid()})
 

@@ -7,9 +7,9 @@ from pathlib import Path
 
 import pytest
 
+from magna_common.processes import pid_alive
 from magna_master import storage
 from magna_master.batch import Batch, BatchConfig, format_summary, hyperparameters, launch_command, run_batch
-from magna_master.supervisor import pid_alive
 
 pytestmark = pytest.mark.ros
 

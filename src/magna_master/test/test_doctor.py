@@ -3,8 +3,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from magna_common.workspace import Workspace
 from magna_master import doctor
-from magna_master.workspace import Workspace
 
 ROOT = Path(__file__).resolve().parents[3]
 

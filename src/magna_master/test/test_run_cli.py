@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 
 from magna_common.ports import free_port
+from magna_common.processes import pid_alive
 from magna_master import cli, storage
-from magna_master.supervisor import pid_alive
 
 ROOT = Path(__file__).resolve().parents[3]
 WORLD = "Gym/1Obs_Central_Cylinder"
@@ -280,7 +280,7 @@ def test_a_killed_batch_leaves_no_process_behind(corpus, tmp_path, leak_token, s
         time.sleep(0.05)
     os.kill(process.pid, signal.SIGKILL)
     process.wait()
-    from magna_master.supervisor import tagged_processes
+    from magna_common.processes import tagged_processes
 
     deadline = time.monotonic() + 30
     while tagged_processes("MAGNA_MASTER_TEST_TOKEN", leak_token) and time.monotonic() < deadline:

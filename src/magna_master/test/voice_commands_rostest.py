@@ -19,7 +19,7 @@ import rostest
 from geometry_msgs.msg import PoseStamped
 from magna_msgs.msg import SMStatus
 
-from magna_master.workspace import find_root
+from magna_common.workspace import find_root
 
 sys.path.append(str(find_root()))  # voice/ sits at the repository root
 

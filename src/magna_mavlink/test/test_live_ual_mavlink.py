@@ -84,7 +84,7 @@ class StandIns:
         assert not dead, f"ended during the test: {dead}{self.tail()}"
 
     def stop(self):
-        from magna_gs.processes import end_process_group
+        from magna_common.processes import end_process_group
 
         for process in reversed(self.processes):
             end_process_group(process)

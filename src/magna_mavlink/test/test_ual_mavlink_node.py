@@ -8,7 +8,7 @@ import pytest
 from fake_autopilot import FakeAutopilot
 
 from magna_common.ports import free_port
-from magna_gs.processes import end_process_group
+from magna_common.processes import end_process_group
 from magna_mavlink.link import mavlink
 from tests.support import wait_until
 

@@ -3,8 +3,8 @@ import math
 
 import pytest
 
+from magna_common.airframes import Battery, load_airframe
 from magna_sim.battery import SPEED_POWER_FACTOR, BatteryModel
-from magna_uav.airframes import Battery, load_airframe
 
 IRIS = load_airframe("iris").battery
 

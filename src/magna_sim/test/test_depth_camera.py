@@ -5,9 +5,9 @@ import numpy as np
 import pybullet as p
 import pytest
 
+from magna_common.airframes import load_airframe
 from magna_sim.bodies import create_uav_body
 from magna_sim.depth_camera import DepthCamera
-from magna_uav.airframes import load_airframe
 
 LEVEL = (0.0, 0.0, 0.0, 1.0)
 

@@ -6,10 +6,10 @@ import math
 import numpy as np
 import pytest
 
+from magna_common.airframes import GRAVITY, load_airframe
 from magna_sim import fixed_wing
 from magna_sim.ual_logic import UalState
 from magna_sim.world import SimWorld, SpawnError
-from magna_uav.airframes import GRAVITY, load_airframe
 
 PLANE = load_airframe("plane")
 FW = PLANE.fixed_wing

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from magna_uav.airframes import load_airframe
+from magna_common.airframes import load_airframe
 
 pytestmark = pytest.mark.timeout(900)
 

@@ -7,10 +7,10 @@ import numpy as np
 import pybullet as p
 import pytest
 
+from magna_common.airframes import AirframeError, load_airframe
 from magna_sim import bodies
 from magna_sim.quadrotor import QuadrotorModel, allocation_matrix, rotation_matrices
 from magna_sim.vehicle import SetpointMode, Vehicle
-from magna_uav.airframes import AirframeError, load_airframe
 
 DT = 1.0 / 240.0
 MULTIROTORS = ["iris", "typhoon_h480", "f550", "crazyflie"]

@@ -4,7 +4,7 @@ import subprocess
 
 import pytest
 
-from magna_uav.airframes import load_airframe
+from magna_common.airframes import load_airframe
 from tests.support import wait_until
 
 ARRIVAL_RADIUS = 0.33 / 2  # the sim's default arrival radius for iris: half of UAL's position_th

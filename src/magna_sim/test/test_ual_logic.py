@@ -4,9 +4,9 @@ import math
 import numpy as np
 import pytest
 
+from magna_common.airframes import load_airframe
 from magna_sim.ual_logic import CommandRefused, UalLogic, UalSettings, UalState
 from magna_sim.vehicle import SetpointMode, Vehicle
-from magna_uav.airframes import load_airframe
 
 
 @pytest.fixture

@@ -4,7 +4,7 @@ import json
 
 import pytest
 
-from magna_uav.airframes import load_airframe
+from magna_common.airframes import load_airframe
 from magna_uav.config import ConfigError, UavConfig, configs_from_mission, configs_from_mission_file
 from tests.support import CORPUS
 

@@ -9,7 +9,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from magna_uav import files, recorder
+from magna_common import files
+from magna_uav import recorder
 from magna_uav.recorder import Recorder, column_kind, columns, depth_path, read_csv, read_depth
 from magna_uav.world_view import AgentState, Obstacle, WorldView
 

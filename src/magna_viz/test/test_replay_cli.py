@@ -10,8 +10,8 @@ import pytest
 import rosbag
 from geometry_msgs.msg import PoseStamped
 
+from magna_common.ros_master import RosMaster
 from magna_master import cli
-from magna_master.ros_master import RosMaster
 from magna_viz import replay
 from tests.support import ROOT
 

@@ -5,9 +5,9 @@ from pathlib import Path
 
 import pytest
 
+from magna_common.ros_master import RosMaster
 from magna_master import cli, storage
 from magna_master.batch import BatchConfig, BatchError, hyperparameters, launch_command, preflight, resolve_inputs
-from magna_master.ros_master import RosMaster
 from magna_viz.rviz_launcher import fitted_config
 from magna_viz.rviz_launcher import main as rviz_world_main
 

@@ -26,7 +26,7 @@ import rosgraph
 import rosgraph.names
 import roslib.packages
 
-from magna_gs.processes import TimeoutTransport, end_process_group
+from magna_common.processes import TimeoutTransport, end_process_group
 
 WATCHER = "/magna_bag_watcher"  # the caller id of our master and node queries
 # The UAL pose and velocity and the managers' navigation steps let mlr rebuild every recorded

@@ -23,7 +23,7 @@ from std_msgs.msg import String
 from uav_abstraction_layer.msg import State as UalState
 
 from magna_common.ports import free_udp_ports
-from magna_gs.processes import end_process_group
+from magna_common.processes import end_process_group
 from magna_mavlink.fleet import Fleet, FleetUav
 from magna_sim.mavlink_telemetry import PX4_SITL_HOME
 

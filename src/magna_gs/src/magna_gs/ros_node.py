@@ -39,19 +39,19 @@ from std_msgs.msg import ColorRGBA, String
 from std_srvs.srv import Trigger, TriggerResponse
 from uav_abstraction_layer.msg import State as UalState
 
+from magna_common.files import write_atomically
+from magna_common.processes import end_parent_launch, end_process_group
 from magna_gs.bag_recorder import BagRecorder, mission_topics
 from magna_gs.commands import CommandPlan, CommandRefused, Param, UavStatus, plan_command
 from magna_gs.factory import ActionClients, RosStateFactory, wait_sim_seconds, world_poses
 from magna_gs.mavlink_uavs import MavlinkUavError, MavlinkUavs
 from magna_gs.mission.build import build_machine
 from magna_gs.mission.loader import MissionError, load_mission
-from magna_gs.processes import end_parent_launch, end_process_group
 from magna_gs.sim_pause import SimulationPause
 from magna_gs.utm import choose_plan, mission_uses_utm
 from magna_gs.utm_client import UtmLink
 from magna_mavlink.fleet import FleetError, check_against_mission, load_fleet, mavlink_uavs
 from magna_sm.introspection import IntrospectionServer
-from magna_uav.files import write_atomically
 
 HELP = """\
 The ground station: runs one mission (ROS-MAGNA mission JSON, current or legacy schema).

@@ -39,17 +39,15 @@ from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from magna_gs.processes import end_process_group
+from magna_common.processes import TOKEN_ENV, end_process_group, kill_tagged
+from magna_common.ros_master import RosMaster, RosMasterError
 from magna_master import storage
-from magna_master.ros_master import RosMaster, RosMasterError
 from magna_master.supervisor import (
     CRASHED,
     GROUND_STATION,
     INTERRUPTED,
     START_FAILED,
     SUPERVISOR_FAILED,
-    TOKEN_ENV,
-    kill_tagged,
 )
 
 HYPERPARAMETERS_PARAM = "/magna/hyperparameters"
@@ -73,7 +71,7 @@ class BatchError(RuntimeError):
 # --- finding worlds and missions ------------------------------------------------------------------------------
 
 def project_root() -> Path | None:
-    from magna_master.workspace import WorkspaceNotFound, find_root
+    from magna_common.workspace import WorkspaceNotFound, find_root
 
     try:
         return find_root()

@@ -10,6 +10,10 @@ import argparse
 import importlib
 import sys
 
+from magna_common.errors import UsageError, UserError
+
+__all__ = ["COMMANDS", "UsageError", "build_parser", "main"]
+
 # Subcommands that exist in this build, in the order `magna --help` lists them.
 # Later capabilities (world, mission, run, replay, learn, voice) add their line here.
 COMMANDS: list[tuple[str, str]] = [
@@ -25,14 +29,10 @@ COMMANDS: list[tuple[str, str]] = [
 ]
 
 
-class UsageError(Exception):
-    """Bad input from the user: printed as `magna: <message>`, exit status 2."""
-
-
 def _project_packages_importable() -> None:
     """mlr and voice live at the repository root, beside the catkin packages, so a node
     started by roslaunch does not see them: put the root on sys.path."""
-    from magna_master.workspace import WorkspaceNotFound, find_root
+    from magna_common.workspace import WorkspaceNotFound, find_root
 
     try:
         root = str(find_root())
@@ -66,17 +66,13 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:
         return int(args._run(args) or 0)
-    except UsageError as error:
+    except UserError as error:
         print(f"magna {args.command}: {error}", file=sys.stderr)
-        return 2
+        return error.exit_status
     except KeyboardInterrupt:
         print(f"magna {args.command}: interrupted", file=sys.stderr)
         return 130
 
 
 if __name__ == "__main__":
-    # `python -m magna_master.cli` runs this file as __main__: call the imported module's main, so the
-    # UsageError that subcommands raise (magna_master.cli.UsageError) is the class caught there.
-    from magna_master.cli import main as imported_main
-
-    sys.exit(imported_main())
+    sys.exit(main())

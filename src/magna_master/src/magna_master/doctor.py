@@ -19,7 +19,8 @@ from dataclasses import dataclass
 from importlib import metadata
 from pathlib import Path
 
-from magna_master.workspace import Workspace
+from magna_common.errors import UsageError
+from magna_common.workspace import Workspace
 
 HELP = ("check the installation (packages, venv, build, message API) and run a live ROS round trip; "
         "or, with --mavlink URL, a MAVLink vehicle's link")
@@ -142,7 +143,7 @@ def check_ual_checksums() -> CheckResult:
 
 def check_live_graph(round_trips: int) -> CheckResult:
     """A private master, a UAL take_off service and a UAL state topic, timed."""
-    from magna_master.ros_master import RosMaster
+    from magna_common.ros_master import RosMaster
 
     with RosMaster() as master:
         os.environ.update(master.env())
@@ -210,7 +211,6 @@ def check_mavlink(url: str, timeout: float) -> list[CheckResult]:
 
 
 def run_mavlink(args) -> int:
-    from magna_master.cli import UsageError
     from magna_mavlink.link_check import BadUrl, parse_url
 
     timeout = MAVLINK_TIMEOUT if args.timeout is None else args.timeout
@@ -234,7 +234,6 @@ def run(args) -> int:
     if getattr(args, "mavlink", None) is not None:
         return run_mavlink(args)
     if getattr(args, "timeout", None) is not None:
-        from magna_master.cli import UsageError
 
         raise UsageError("--timeout goes with --mavlink URL (the wait for a MAVLink vehicle)")
     workspace = Workspace.locate()

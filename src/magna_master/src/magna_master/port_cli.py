@@ -14,6 +14,8 @@ import sys
 from pathlib import Path
 
 from magna_common.cli_vocabulary import OutputExists, add_deprecated_flag, add_force, add_output, add_rtf, check_output
+from magna_common.errors import UsageError
+from magna_common.files import write_text_atomically
 
 HELP = "porting report for a folder of ROS-MAGNA worlds and missions: what loads, migrates, warns and flies"
 
@@ -76,7 +78,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args) -> int:
-    from magna_master.cli import UsageError
     from magna_master.port import PortError, as_json, format_report, port_folder
 
     if args.output is not None:
@@ -95,9 +96,7 @@ def run(args) -> int:
         _fly(report, args)
     print(format_report(report, details=not args.brief), flush=True)
     if args.output is not None:
-        from magna_master.storage import atomic_write_text
-
-        atomic_write_text(args.output, json.dumps(as_json(report), indent=2) + "\n")
+        write_text_atomically(args.output, json.dumps(as_json(report), indent=2) + "\n", overwrite=True)
         print(f"json:    {args.output}")
     return 2 if report.refused else 0
 
@@ -123,7 +122,6 @@ def _fly(report, args) -> None:
 
 class _Progress:
     """One line on a terminal, rewritten per file; silent elsewhere."""
-
     def __call__(self, what: str) -> None:
         if sys.stderr.isatty():
             print(f"\rchecking {what}"[:100].ljust(100), end="", file=sys.stderr, flush=True)

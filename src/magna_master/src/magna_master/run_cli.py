@@ -18,6 +18,7 @@ import sys
 from pathlib import Path
 
 from magna_common.cli_vocabulary import add_deprecated_flag, add_rtf, add_search_path
+from magna_common.errors import UsageError
 
 HELP = "run a batch of simulations of a mission in a world; save bags, CSVs and a summary per dataset"
 
@@ -203,7 +204,6 @@ def check_fleet(mission_file: Path, fleet_file: Path | None, rtf: str) -> tuple[
 def run(args) -> int:
     from magna_master import storage
     from magna_master.batch import BatchError, format_summary, run_batch
-    from magna_master.cli import UsageError
 
     try:
         config = build_config(args)

@@ -30,27 +30,34 @@ import fcntl
 import io
 import json
 import os
-import re
 import shutil
-import tempfile
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-DEFAULT_DATA_ROOT = Path("~/magna_data")
-DEFAULT_NAME = "default"
-SUMMARY_FILE = "summary.csv"
-RESULT_FILE = "result.json"
-SUMMARY_COLUMNS = ("id", "success", "outcome", "message", "duration", "wall_time", "collisions")
+from magna_common.files import write_text_atomically
+from magna_common.storage_tree import (
+    DEFAULT_DATA_ROOT,
+    DEFAULT_NAME,
+    RESULT_FILE,
+    SUMMARY_COLUMNS,
+    SUMMARY_FILE,
+    StorageError,
+    StorageKey,
+    check_component,
+    existing_simulations,
+    simulation_dir,
+)
+
+# The tree's names are re-exported: the Master's modules know them as storage.X.
+__all__ = ["ABORT", "APPEND", "DEFAULT_DATA_ROOT", "DEFAULT_NAME", "OVERWRITE", "POLICIES", "RESULT_FILE",
+           "SKIP_SAVE", "SUMMARY_COLUMNS", "SUMMARY_FILE", "DatasetLock", "StorageConflict", "StorageError",
+           "StorageKey", "StoragePlan", "ask_policy", "check_component", "existing_simulations", "plan_storage",
+           "prepare_simulation_dir", "read_result", "read_summary", "remove_summary_row", "simulation_dir",
+           "summary_row", "update_summary", "write_result", "write_summary"]
 
 APPEND, OVERWRITE, SKIP_SAVE, ABORT = "append", "overwrite", "skip-save", "abort"
 POLICIES = (APPEND, OVERWRITE, SKIP_SAVE, ABORT)
-
-_SIMULATION_DIR = re.compile(r"^simulation_(\d+)$")
-
-
-class StorageError(RuntimeError):
-    """A storage problem the user can fix (bad name, conflict, locked dataset); exit status 2."""
 
 
 class StorageConflict(StorageError):
@@ -80,80 +87,12 @@ def _id_ranges(ids: Iterable[int], prefix: str = "") -> str:
     return ", ".join(parts) or "nothing"
 
 
-def check_component(value: str, what: str) -> str:
-    """A name used as one folder of the tree: no separators, not '.' or '..', not empty."""
-    if not value or value in (".", "..") or "/" in value or "\0" in value or value != value.strip():
-        raise StorageError(f"{what} {value!r} cannot name a folder: use a plain name without '/' "
-                           "or surrounding spaces (e.g. 'default')")
-    return value
-
-
-@dataclass(frozen=True)
-class StorageKey:
-    """What a batch simulates and under which name; it decides the folder of its datasets."""
-
-    world: str
-    subworld: str
-    mission: str
-    submission: str
-    name: str = DEFAULT_NAME
-
-    def __post_init__(self):
-        for what in ("world", "subworld", "mission", "submission", "name"):
-            check_component(getattr(self, what), what)
-
-    def base_dir(self, data_root: Path) -> Path:
-        return (Path(data_root).expanduser() / "Simulations" / self.world / self.subworld / self.mission
-                / self.submission / self.name)
-
-    def dataset_dir(self, data_root: Path, n_dataset: int) -> Path:
-        if n_dataset < 0:
-            raise StorageError(f"dataset number must be >= 0, got {n_dataset}")
-        return self.base_dir(data_root) / f"dataset_{n_dataset}"
-
-
-def simulation_dir(dataset_dir: Path, m: int) -> Path:
-    return Path(dataset_dir) / f"simulation_{m}"
-
-
-def existing_simulations(dataset_dir: Path) -> list[int]:
-    """Ids of the `simulation_<m>` folders in a dataset, sorted (none when it does not exist)."""
-    try:
-        entries = list(Path(dataset_dir).iterdir())
-    except FileNotFoundError:
-        return []
-    ids = []
-    for entry in entries:
-        match = _SIMULATION_DIR.match(entry.name)
-        if match and entry.is_dir():
-            ids.append(int(match.group(1)))
-    return sorted(ids)
-
-
-# --- atomic files ------------------------------------------------------------------------------------------
-
-def atomic_write_text(path: Path, text: str) -> None:
-    """Write `text` to `path` so that readers see the old file or the whole new one, never a part."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", newline="") as handle:
-            handle.write(text)
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
-
+# --- result.json and summary.csv ---------------------------------------------------------------------------
 
 def write_result(sim_dir: Path, result: dict) -> Path:
     """result.json of one simulation, atomically."""
     path = Path(sim_dir) / RESULT_FILE
-    atomic_write_text(path, json.dumps(result, indent=2, sort_keys=True, default=str) + "\n")
+    write_text_atomically(path, json.dumps(result, indent=2, sort_keys=True, default=str) + "\n", overwrite=True)
     return path
 
 
@@ -210,7 +149,7 @@ def write_summary(dataset_dir: Path, rows: Iterable[dict]) -> Path:
     for row in rows:
         writer.writerow({k: row.get(k, "") for k in (*SUMMARY_COLUMNS, *extra)})
     path = Path(dataset_dir) / SUMMARY_FILE
-    atomic_write_text(path, out.getvalue())
+    write_text_atomically(path, out.getvalue(), overwrite=True)
     return path
 
 

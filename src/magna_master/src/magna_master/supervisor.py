@@ -24,7 +24,6 @@ master). The supervisor
 from __future__ import annotations
 
 import argparse
-import ctypes
 import datetime
 import json
 import os
@@ -33,14 +32,21 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from magna_gs.processes import end_process_group
-from magna_master.storage import RESULT_FILE, atomic_write_text
+from magna_common.files import write_text_atomically
+from magna_common.processes import (
+    TOKEN_ENV,
+    ancestors,
+    end_process_group,
+    kill_tagged,
+    pid_alive,
+    set_parent_death_signal,
+)
+from magna_common.storage_tree import RESULT_FILE
 
-TOKEN_ENV = "MAGNA_SIM_TOKEN"
 TERMINATION_SERVICE = "/magna/master/simulation_termination"
 GS_STOP_SERVICE = "/magna/gs/stop"
 STOP_RETRY = 0.2  # wall s between calls of the stop service while it is not served yet
@@ -52,81 +58,6 @@ CRASHED = "crashed"  # the launch ended without calling the service
 INTERRUPTED = "interrupted"  # Ctrl-C / SIGTERM reached the batch or the supervisor
 START_FAILED = "start_failed"  # the launch command could not be started
 SUPERVISOR_FAILED = "supervisor_failed"  # the supervisor ended without a result (written by the batch)
-
-
-# --- processes, found through /proc --------------------------------------------------------------------
-
-def pid_alive(pid: int) -> bool:
-    """True while `pid` runs (a zombie waiting to be reaped counts as dead)."""
-    try:
-        with open(f"/proc/{pid}/stat") as stat:
-            return stat.read().rsplit(")", 1)[1].split()[0] != "Z"
-    except (FileNotFoundError, ProcessLookupError, IndexError):
-        return False
-
-
-def ancestors(pid: int | None = None) -> set[int]:
-    """`pid` (default: this process) and every process above it."""
-    pid = os.getpid() if pid is None else pid
-    chain = set()
-    while pid > 1 and pid not in chain:
-        chain.add(pid)
-        try:
-            with open(f"/proc/{pid}/stat") as stat:
-                pid = int(stat.read().rsplit(")", 1)[1].split()[1])
-        except (FileNotFoundError, ProcessLookupError, IndexError, ValueError):
-            break
-    return chain
-
-
-def tagged_processes(name: str, value: str, exclude: Iterable[int] = ()) -> list[tuple[int, str]]:
-    """Live processes whose environment holds `name=value`, as (pid, command line)."""
-    needle = f"{name}={value}".encode()
-    skip = set(exclude)
-    found = []
-    for entry in os.scandir("/proc"):
-        if not entry.name.isdigit() or int(entry.name) in skip:
-            continue
-        try:
-            with open(f"/proc/{entry.name}/environ", "rb") as handle:
-                if needle not in handle.read().split(b"\0"):
-                    continue
-            with open(f"/proc/{entry.name}/cmdline", "rb") as handle:
-                command = handle.read().replace(b"\0", b" ").decode(errors="replace").strip()
-        except (FileNotFoundError, ProcessLookupError, PermissionError):
-            continue
-        if pid_alive(int(entry.name)):
-            found.append((int(entry.name), command))
-    return found
-
-
-def kill_tagged(token: str, exclude: Iterable[int] = (), timeout: float = 5.0) -> list[str]:
-    """SIGKILL every live process carrying MAGNA_SIM_TOKEN=token (but `exclude`); describe what was killed."""
-    exclude = set(exclude)
-    killed = []
-    deadline = time.monotonic() + timeout
-    while True:
-        left = tagged_processes(TOKEN_ENV, token, exclude)
-        if not left or time.monotonic() > deadline:
-            return killed
-        for pid, command in left:
-            try:
-                os.kill(pid, signal.SIGKILL)
-            except ProcessLookupError:
-                continue
-            description = f"{pid} {command[:200]}"
-            if description not in killed:
-                killed.append(description)
-        time.sleep(0.05)
-
-
-def set_parent_death_signal(sig: int = signal.SIGTERM) -> bool:
-    """Ask Linux to send `sig` to this process when its parent dies (prctl PR_SET_PDEATHSIG)."""
-    try:
-        libc = ctypes.CDLL(None, use_errno=True)
-        return libc.prctl(1, int(sig), 0, 0, 0) == 0  # 1 = PR_SET_PDEATHSIG
-    except (OSError, AttributeError):
-        return False
 
 
 def log_tail(path: Path | None, lines: int = 6, limit: int = 600) -> str:
@@ -361,7 +292,8 @@ class SupervisorCore:
 
     def _write(self, result: dict) -> None:
         self.result_path.parent.mkdir(parents=True, exist_ok=True)
-        atomic_write_text(self.result_path, json.dumps(result, indent=2, sort_keys=True, default=str) + "\n")
+        write_text_atomically(self.result_path, json.dumps(result, indent=2, sort_keys=True, default=str) + "\n",
+                              overwrite=True)
 
 
 # --- the ROS node ------------------------------------------------------------------------------------------------

@@ -30,7 +30,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from magna_uav.airframes import Battery
+from magna_common.airframes import Battery
 
 SPEED_POWER_FACTOR = 0.005  # s^2/m^2
 CELL_NOMINAL_V = 3.7

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import pybullet as p
 
-from magna_uav.airframes import Airframe
+from magna_common.airframes import Airframe
 
 GROUND_NAME = "ground"
 

@@ -38,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 import pybullet as p
 
-from magna_uav.airframes import GRAVITY, Airframe, AirframeError, FixedWing
+from magna_common.airframes import GRAVITY, Airframe, AirframeError, FixedWing
 
 from .vehicle import Manoeuvre, Setpoint, SetpointMode, Vehicle
 

@@ -26,8 +26,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pybullet as p
 
+from magna_common.airframes import Airframe, AirframeError
 from magna_sim.vehicle import Vehicle
-from magna_uav.airframes import Airframe, AirframeError
 
 GRAVITY = 9.81  # m/s^2, the world's gravity
 

@@ -50,7 +50,7 @@ that nodes starting meanwhile learn the time and the poses.
 
 Private parameters (defaults):
   ~uavs (0)              UAVs 1..N spawned at start, side by side along y near the origin
-  ~model (iris)          their airframe (src/magna_uav/airframes/<model>.json)
+  ~model (iris)          their airframe (src/magna_common/airframes/<model>.json)
   ~flight_model (light)  light (kinematic) or dynamic (rotor forces); a fixed-wing airframe
                          (plane) always flies fixed_wing (it cannot hover)
   ~spacing (2.0)         metres between the initial UAVs

@@ -20,7 +20,7 @@ from typing import Protocol
 
 import numpy as np
 
-from magna_uav.airframes import Airframe
+from magna_common.airframes import Airframe
 
 
 class SetpointMode(enum.IntEnum):

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 import pybullet as p
 
-from magna_uav.airframes import AirframeError, available_models, load_airframe
+from magna_common.airframes import AirframeError, available_models, load_airframe
 
 from . import bodies, fixed_wing, guidance, shapes
 from .battery import BatteryModel

@@ -8,7 +8,7 @@ original ROS-MAGNA missions:
 
 ID, model, mode and marker_color are required; ual_use (default: the airframe's) and
 agent_manager_on_gs (legacy uav_manager_on_gs, default true) are optional. The model names
-an airframe file, src/magna_uav/airframes/<model>.json. Every error names the file, the
+an airframe file, src/magna_common/airframes/<model>.json. Every error names the file, the
 JSON path and what would be accepted.
 """
 from __future__ import annotations
@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from magna_uav.airframes import AIRFRAME_DIR, Airframe, AirframeError, available_models, load_airframe
+from magna_common.airframes import AIRFRAME_DIR, Airframe, AirframeError, available_models, load_airframe
 
 MODES = ("sitl", "hil", "real")
 AGENTS_KEY = "Agents_Config"

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from magna_uav.files import write_atomically
+from magna_common.files import write_atomically
 from magna_uav.world_view import WorldView
 
 DEFAULT_OBSTACLES = 5

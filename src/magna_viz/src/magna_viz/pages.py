@@ -11,7 +11,7 @@ import os
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 
-from magna_uav.files import write_atomically
+from magna_common.files import write_atomically
 
 STYLE = """
 body { font-family: Helvetica, Arial, sans-serif; margin: 1.5em auto; max-width: 1100px; color: #222; }

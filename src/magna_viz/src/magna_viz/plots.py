@@ -38,7 +38,7 @@ from matplotlib.path import Path as MplPath
 from mpl_toolkits.mplot3d import Axes3D  # noqa: F401  (registers the 3-D projection)
 from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
 
-from magna_uav.files import write_atomically
+from magna_common.files import write_atomically
 from magna_viz.latency import DEFAULT_THRESHOLD, command_latencies, latency_samples
 from magna_viz.recorded_world import WorldShape
 from magna_viz.recording import Recording, UavRecord

@@ -1,6 +1,6 @@
 """Replay a simulation's bag into rviz, on the user's display or headless under Xvfb with screenshots.
 
-Everything runs against a private ROS master (magna_master.ros_master.RosMaster, never 11311) with
+Everything runs against a private ROS master (magna_common.ros_master.RosMaster, never 11311) with
 /use_sim_time: the scene node (UAV markers, and the world relayed so its end-of-mission clearing is
 dropped), rviz with the world family's configuration (camera fitted to the world and the flights),
 and `rosbag play --clock`. Headless, an Xvfb server of its own (a free display, -displayfd) hosts
@@ -27,7 +27,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from magna_uav.files import write_atomically
+from magna_common.files import write_atomically
 from magna_viz import rviz_config as rc
 
 BAG_NAME = "simulation.bag"
@@ -299,7 +299,7 @@ class Replay:
 
     # The whole replay: a private master, its processes, the outputs. Raises ReplayFailure.
     def run(self) -> list[Path]:
-        from magna_master.ros_master import RosMaster, RosMasterError
+        from magna_common.ros_master import RosMaster, RosMasterError
 
         options = self.plan.options
         self._work = tempfile.TemporaryDirectory(prefix="magna_replay_")

@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 
 from magna_common.cli_vocabulary import add_force, add_output, add_search_path
+from magna_common.errors import UsageError
 from magna_viz.report_cli import EXAMPLE_DATASET
 
 HELP = "play a simulation's bag into rviz; --headless writes screenshots, the final frame, a GIF or an MP4"
@@ -94,7 +95,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def options_from(args):
     """ReplayOptions from parsed arguments; UsageError for headless options without --headless."""
-    from magna_master.cli import UsageError
     from magna_viz.replay import ReplayOptions
 
     if not args.headless:
@@ -124,7 +124,6 @@ def mission_file(spec: str | None, search_dirs=()) -> Path | None:
     from magna_gs.mission.cli import mission_folders
     from magna_gs.mission.loader import find_mission
     from magna_gs.mission.model import MissionError
-    from magna_master.cli import UsageError
 
     try:
         return Path(find_mission(name, mission_folders(search_dirs)))
@@ -133,7 +132,6 @@ def mission_file(spec: str | None, search_dirs=()) -> Path | None:
 
 
 def run(args) -> int:
-    from magna_master.cli import UsageError
     from magna_viz.replay import Replay, ReplayError, ReplayFailure, make_plan
 
     options = options_from(args)

@@ -9,6 +9,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from magna_common.errors import UsageError
+
 # The dataset the root README's `make run` leaves, which examples name.
 EXAMPLE_DATASET = "~/magna_data/Simulations/Gym/Central_Obstacle_Torus/Gym/2UAVs_Crossing_ORCA/default/dataset_1"
 
@@ -39,7 +41,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args) -> int:
-    from magna_master.cli import UsageError
     from magna_viz.index import simulation_dirs
     from magna_viz.report import REPORT_FILE
 

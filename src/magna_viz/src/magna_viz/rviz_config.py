@@ -15,7 +15,7 @@ from pathlib import Path
 
 import yaml
 
-from magna_uav.files import write_atomically
+from magna_common.files import write_atomically
 
 RVIZ_DIR = Path(__file__).resolve().parents[2] / "rviz"
 DEFAULT_FAMILY = "gym"

@@ -20,6 +20,7 @@ from collections import Counter
 from pathlib import Path
 
 from magna_common.cli_vocabulary import OutputExists, add_force, add_output, add_search_path, check_output
+from magna_common.errors import UsageError
 
 HELP = "check a world (a file or a WORLD/SUBWORLD name: load, lay out poses and obstacles, summarise) or draw it"
 
@@ -107,13 +108,9 @@ def _seed(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args) -> int:
-    from magna_master.cli import UsageError
-
     try:
         return args._world_run(args)
     except UsageError as error:
-        # Printed here, not left to magna_master.cli.main: when that module runs as __main__ (./magna runs
-        # `python -m magna_master.cli`) its UsageError is another class than the one imported here.
         print(f"magna world: {error}", file=sys.stderr)
         return 2
 
@@ -124,7 +121,6 @@ def world_roots(search_dirs) -> list[Path]:
     """Where world names are looked up: `magna run`'s order (magna_master.batch.world_roots); UsageError for a
     --search-path folder that does not exist."""
     from magna_master.batch import world_roots as run_world_roots
-    from magna_master.cli import UsageError
 
     for directory in search_dirs:
         if not Path(directory).expanduser().is_dir():
@@ -136,7 +132,6 @@ def world_roots(search_dirs) -> list[Path]:
 def find_world(spec: str, search_dirs=(), option: str = "") -> Path:
     """The world file `spec` names: an existing file as it is, else a name WORLD/SUBWORLD (a trailing .json
     dropped) looked up in `world_roots(search_dirs)`. UsageError naming every place looked at."""
-    from magna_master.cli import UsageError
     from magna_worlds.loader import candidate_paths, find_world_file
 
     roots = world_roots(search_dirs)
@@ -160,7 +155,6 @@ def find_world(spec: str, search_dirs=(), option: str = "") -> Path:
 def _load(spec: str, seed: int, strict: bool = False, search_dirs=()):
     """(resolved world, load seconds, resolve seconds); a WorldError becomes a one-line usage error.
     Warnings go to stderr, one line each."""
-    from magna_master.cli import UsageError
     from magna_worlds.errors import WorldError
     from magna_worlds.generate import resolve_world
     from magna_worlds.loader import load_world
@@ -275,8 +269,6 @@ def _check(args) -> int:
 # --- draw -----------------------------------------------------------------------------------------------------
 
 def _draw(args) -> int:
-    from magna_master.cli import UsageError
-
     output = Path(args.output)
     if output.suffix.lower() != ".png":
         raise UsageError(f"-o {output}: the picture is a PNG; name it *.png")

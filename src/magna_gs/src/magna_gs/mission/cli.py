@@ -15,6 +15,7 @@ from collections import Counter
 from pathlib import Path
 
 from magna_common.cli_vocabulary import OutputExists, add_force, add_output, add_search_path, check_output
+from magna_common.errors import UsageError
 
 HELP = "check a mission (a file or a MISSION/SUBMISSION name; structure, and against a world) or draw it"
 
@@ -106,15 +107,12 @@ def _mission(parser: argparse.ArgumentParser) -> None:
 
 class _Problems(Exception):
     """Problems to print one per line (exit 2)."""
-
     def __init__(self, lines: list[str]):
         super().__init__("\n".join(lines))
         self.lines = lines
 
 
 def run(args) -> int:
-    from magna_master.cli import UsageError
-
     try:
         return args._mission_run(args)
     except _Problems as problems:
@@ -122,8 +120,6 @@ def run(args) -> int:
             print(f"magna mission: {line}", file=sys.stderr)
         return 2
     except UsageError as error:
-        # printed here, not by magna_master.cli.main: under `python -m magna_master.cli` that module's
-        # UsageError is another class than the one imported here (as in magna_worlds.cli)
         print(f"magna mission: {error}", file=sys.stderr)
         return 2
 
@@ -135,7 +131,6 @@ def mission_folders(search_dirs) -> list[Path]:
     missions/ (when there) and DIR itself (the finder also tries their Missions/), then $MAGNA_MISSIONS_PATH and
     the project's missions/. UsageError for a --search-path folder that does not exist."""
     from magna_gs.mission.loader import default_search_path
-    from magna_master.cli import UsageError
 
     folders: list[Path] = []
     for directory in search_dirs:
@@ -243,8 +238,6 @@ def _check_world(mission, args) -> tuple[str, list[str]]:
 # --- draw ------------------------------------------------------------------------------------------------------
 
 def _draw(args) -> int:
-    from magna_master.cli import UsageError
-
     output = Path(args.output)
     if output.suffix.lower() not in DRAW_FORMATS:
         raise UsageError(f"-o {output}: unknown picture format '{output.suffix}'; name it *.png, *.svg, *.pdf or *.dot")

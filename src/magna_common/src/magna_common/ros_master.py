@@ -18,7 +18,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from magna_common.ports import free_port
-from magna_gs.processes import TimeoutTransport, end_process_group
+from magna_common.processes import TimeoutTransport, end_process_group
 
 
 class RosMasterError(RuntimeError):

@@ -4,7 +4,7 @@ from pathlib import Path
 
 import pytest
 
-from magna_uav.airframes import AirframeError, available_models, load_airframe
+from magna_common.airframes import AirframeError, available_models, load_airframe
 from tests.support import CORPUS as CORPUS_ROOT
 
 CORPUS = CORPUS_ROOT / "Agent_Configurations"

@@ -1,4 +1,4 @@
-"""Airframe files: `src/magna_uav/airframes/<model>.json`, parsed once into typed objects.
+"""Airframe files: `src/magna_common/airframes/<model>.json`, parsed once into typed objects.
 
 The first keys are those of the original ROS-MAGNA files (autopilot, ual_use,
 safety_radius, max_speed, accepted_target_radius, ...). MAGNA adds the physical
@@ -113,7 +113,7 @@ class Airframe:
             if getattr(self, block) is None:
                 raise AirframeError(
                     f"{self.source}: '{block}': missing; the simulator needs the {', '.join(blocks)} blocks "
-                    f"for {kind} (see src/magna_uav/airframes/{example}.json)")
+                    f"for {kind} (see src/magna_common/airframes/{example}.json)")
 
 
 _BLOCKS = {"body": Body, "propulsion": Propulsion, "limits": Limits, "battery": Battery, "fixed_wing": FixedWing}
@@ -161,7 +161,7 @@ def _check_kind(af: Airframe) -> None:
     if af.body is not None and af.body.rotors == 0 and af.fixed_wing is None:
         raise AirframeError(f"{src}: 'fixed_wing': missing; body.rotors = 0 makes a fixed wing, which needs its "
                             "speeds, bank angle, climb and sink rates, loiter radius and landing slope "
-                            "(see src/magna_uav/airframes/plane.json)")
+                            "(see src/magna_common/airframes/plane.json)")
     if af.fixed_wing is None:
         if af.battery is not None and af.battery.hover_power_w is None:
             raise AirframeError(f"{src}: 'battery.hover_power_w': missing (W drawn while hovering)")

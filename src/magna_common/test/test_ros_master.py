@@ -8,7 +8,7 @@ import xmlrpc.client
 import pytest
 
 from magna_common.ports import free_port
-from magna_master.ros_master import RosMaster, RosMasterError
+from magna_common.ros_master import RosMaster, RosMasterError
 
 
 def _alive(pid):
