@@ -46,8 +46,7 @@ import numpy as np
 from magna_uav.config import ConfigError, configs_from_mission_file
 from magna_uav.recorder import DEFAULT_OBSTACLES
 from magna_uav.world_view import AgentState, WorldView
-from mlr.pickler import PicklerError
-from mlr.steps import UavSteps
+from mlr.steps import PicklerError, UavSteps
 
 BAG_NAME = "simulation.bag"
 MARKERS_TOPIC = "/magna/world/markers"

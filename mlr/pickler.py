@@ -30,14 +30,10 @@ from magna_common.airframes import AirframeError, load_airframe
 from magna_uav.nai.inputs import ROLE_BLOCKS, assemble_inputs, input_names
 from magna_uav.nai.neural import prepare_depth
 from magna_uav.recorder import depth_path, read_csv, read_depth
-from mlr.steps import UavSteps
+from mlr.steps import PicklerError, UavSteps
 
 XYZ = ("x", "y", "z")
 SOURCES = ("csv", "bag")
-
-
-class PicklerError(ValueError):
-    """Data that cannot become samples; the message names the file and the fix."""
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,4 @@
-"""The control steps of one UAV in one simulation, as columns: what both readers produce.
+"""The control steps of one UAV in one simulation, as columns: what both readers produce, and the error both raise.
 
 `mlr.pickler` fills a `UavSteps` from a recorder CSV, `mlr.bags` from a simulation bag; the
 input vectors are then built from it by one function (`mlr.pickler.samples`), so the two
@@ -11,6 +11,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+
+
+class PicklerError(ValueError):
+    """Data that cannot become samples; the message names the file and the fix."""
 
 
 @dataclass
