@@ -378,7 +378,7 @@ def test_the_recorder_module_imports_without_ros():
 def test_a_row_becomes_the_navigation_step_with_its_values():
     from magna_msgs.msg import NavigationStep
 
-    from magna_uav.ros_node import navigation_msg
+    from magna_uav.ros_navigation import navigation_msg
 
     rec = Recorder(1, [2])
     record_one(rec, make_view(), time=12.3, role="agent_ad", goal_velocity=[1.0, -0.5, 0.25], goal_distance=2.0,
@@ -402,7 +402,7 @@ def test_a_row_becomes_the_navigation_step_with_its_values():
 def test_a_late_subscriber_first_gets_every_step_sent_so_far(rospy_node):
     from magna_msgs.msg import NavigationStep
 
-    from magna_uav.ros_node import NavigationPublisher
+    from magna_uav.ros_navigation import NavigationPublisher
     from tests.support import wait_until
 
     rospy = rospy_node

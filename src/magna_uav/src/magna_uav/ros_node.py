@@ -9,34 +9,34 @@ preempts it (the UAV does one thing at a time).
 from __future__ import annotations
 
 import argparse
-import collections
-import queue
-import threading
 import time
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import rospy
-from geometry_msgs.msg import Point, PoseStamped, Vector3
+from geometry_msgs.msg import Point, PoseStamped
 from magna_msgs import msg as magna_actions
-from magna_msgs.msg import NavigationStep
 from magna_msgs.srv import AlgorithmControl, AlgorithmControlResponse, Die, DieResponse, StateActualization
 from nav_msgs.msg import Path as PathMsg
 from std_msgs.msg import Float64, String
 
+from magna_common import ros_names as names
 from magna_sm import CBState, StateMachine
 from magna_sm.introspection import IntrospectionServer
 from magna_sm.simple_action import SimpleActionServer
-from magna_uav.config import ConfigError, UavConfig, configs_from_mission, configs_from_mission_file
 from magna_uav.evaluator import Evaluator
 from magna_uav.goals import ROLE_ACTIONS, role_from_goal
-from magna_uav.manager import ABORTED, PILOT_TAKEOVER, PREEMPTED, Clock, RoleResult, UavManager
+from magna_uav.manager import ABORTED, PILOT_TAKEOVER, PREEMPTED, RoleResult, UavManager
 from magna_uav.nai.interface import NavigationInterface
+from magna_uav.order_desk import Order, OrderDesk
 from magna_uav.paths import path_msg
 from magna_uav.recorder import Recorder
+from magna_uav.reporter import Reporter
 from magna_uav.roles import FollowPathRole
 from magna_uav.ros_data import RosWorldData
+from magna_uav.ros_navigation import NavigationPublisher, navigation_msg
+from magna_uav.settings import Settings, SettingsError, read_settings
+from magna_uav.stepping_clock import SteppingClock
 from magna_uav.world_view import WorldView
 
 HELP = """\
@@ -76,223 +76,19 @@ ACTION_TYPES = {
     "follow_agent_ad": "FollowAgentAD", "follow_agent_ap": "FollowAgentAP", "save_csv": "SaveCSV",
     "set_mission": "SetMission",
 }
-STATE_SERVICE = "/magna/gs/state_actualization"
-CRITICAL_TOPIC = "/magna/gs/critical_event"
 
 
-def navigation_msg(index: int, row: dict, role_number: int) -> NavigationStep:
-    """The NavigationStep of the recorder's row `index` (`Recorder.row`): the very numbers its CSV row gets."""
-    msg = NavigationStep(row=index, role_number=role_number, role=row["role"], algorithm=row["algorithm"],
-                         goal=Point(*(row[f"goal.{a}"] for a in "xyz")),
-                         goal_velocity=Vector3(*(row[f"goal_vel.{a}"] for a in "xyz")),
-                         goal_distance=row["goal_dist"],
-                         selected_velocity=Vector3(*(row[f"sel_vel.{a}"] for a in "xyz")),
-                         feasible=NavigationStep.FEASIBILITY_UNKNOWN if row["feasible"] is None else row["feasible"])
-    # rounded to the nanosecond, not truncated as Time.from_sec does: a bag reader compares it
-    # with the UAL stamps of the same simulated instant
-    nanoseconds = round(row["time"] * 1e9)
-    msg.header.stamp = rospy.Time(nanoseconds // 10**9, nanoseconds % 10**9)
-    msg.header.frame_id = "map"
-    return msg
+def ground_station_reporter(uav_id: int) -> Reporter:
+    """A Reporter calling the ground station's state_actualization service, when it serves one."""
+    proxy = rospy.ServiceProxy(names.GS_STATE_ACTUALIZATION, StateActualization)
 
+    def call(**request):
+        rospy.wait_for_service(names.GS_STATE_ACTUALIZATION, timeout=0.2)
+        return proxy(**request)
 
-class NavigationPublisher(rospy.SubscribeListener):
-    """Publishes the NavigationSteps, and replays those sent so far to every new subscriber.
-
-    rosbag record finds a topic by polling the master about once a wall second, so at a high
-    real-time factor the first steps would be flown before the bag listens. A new subscriber
-    first gets the last `backlog` steps, oldest first; a step published while it was joining
-    may reach it twice, so readers drop repeats (same `row`: mlr.bags does).
-    """
-
-    def __init__(self, topic: str, backlog: int = 10000):
-        self._sent: collections.deque[NavigationStep] = collections.deque(maxlen=backlog)
-        self._lock = threading.Lock()  # a replay and a new step never interleave on one connection
-        # The queue holds a whole replay: a shorter one would drop its oldest steps.
-        self.publisher = rospy.Publisher(topic, NavigationStep, queue_size=backlog, subscriber_listener=self)
-
-    def publish(self, msg: NavigationStep) -> None:
-        with self._lock:
-            self._sent.append(msg)
-            self.publisher.publish(msg)
-
-    def peer_subscribe(self, topic_name, topic_publish, peer_publish) -> None:
-        with self._lock:
-            for msg in self._sent:
-                peer_publish(msg)
-
-
-class SettingsError(ValueError):
-    """A bad private parameter; the message names it."""
-
-
-@dataclass
-class Settings:
-    uav_id: int
-    configs: list[UavConfig]
-    control_rate: float = 10.0
-    data_dir: Path = field(default_factory=lambda: Path.home() / ".ros" / "magna")
-    depth: bool = False
-    low_battery: float = 0.15
-    algorithm: str = "simple"
-    flies_networks: bool = False  # the mission names neural_network: torch is imported at start-up
-
-    @property
-    def own(self) -> UavConfig:
-        return next(c for c in self.configs if c.id == self.uav_id)
-
-
-def read_settings(param=rospy.get_param) -> Settings:
-    """The node's private parameters, checked; SettingsError names the bad one."""
-    raw_id = param("~id", None)
-    if raw_id is None:
-        raise SettingsError("~id is missing: give this UAV's id, e.g. _id:=1")
-    uav_id = int(raw_id)
-    mission_file = param("~mission_file", "")
-    try:
-        if mission_file:
-            configs = configs_from_mission_file(mission_file)
-        else:
-            ids = [int(i) for i in param("~uav_ids", [uav_id])]
-            model = param("~model", "iris")
-            entries = [{"ID": i, "model": model, "mode": "sitl", "marker_color": [255, 255, 255, 1.0]} for i in ids]
-            configs = configs_from_mission(entries, "~uav_ids/~model")
-    except ConfigError as error:
-        raise SettingsError(str(error)) from None
-    if uav_id not in [c.id for c in configs]:
-        raise SettingsError(f"~id is {uav_id} but the mission's UAVs are {[c.id for c in configs]}")
-    rate = float(param("~control_rate", 10.0))
-    if not 0.5 <= rate <= 200.0:
-        raise SettingsError(f"~control_rate is {rate}: give 0.5 to 200 steps per second")
-    low = float(param("~low_battery", 0.15))
-    if not 0.0 <= low < 1.0:
-        raise SettingsError(f"~low_battery is {low}: give a battery fraction in [0, 1)")
-    flies_networks = bool(mission_file) and "neural_network" in Path(mission_file).read_text(errors="replace")
-    return Settings(uav_id, configs, rate, Path(param("~data_dir", str(Path.home() / ".ros" / "magna"))).expanduser(),
-                    bool(param("~depth_camera", False)), low, str(param("~algorithm", "simple")), flies_networks)
-
-
-@dataclass
-class Order:
-    """A goal waiting for, or flown by, the state machine."""
-
-    action: str
-    goal: object
-    server: SimpleActionServer | None = None
-    preempt: threading.Event = field(default_factory=threading.Event)
-    sent_at: float = float("inf")  # sim time the ground station sent the goal (its goal id's stamp)
-    done: threading.Event = field(default_factory=threading.Event)
-    result: RoleResult | None = None
-
-    def finish(self, result: RoleResult) -> None:
-        self.result = result
-        self.done.set()
-
-    def preempt_requested(self) -> bool:
-        return self.preempt.is_set() or (self.server is not None and self.server.is_preempt_requested()) \
-            or rospy.is_shutdown()
-
-
-class OrderDesk:
-    """Goals wait here for the machine; a new goal preempts the one flying and any still waiting."""
-
-    def __init__(self):
-        self._cond = threading.Condition()
-        self._waiting: collections.deque[Order] = collections.deque()
-        self.current: Order | None = None
-        self.dying = False
-
-    def submit(self, order: Order) -> None:
-        with self._cond:
-            if self.dying:
-                order.finish(RoleResult(ABORTED, "the UAV manager is shutting down"))
-                return
-            for older in [self.current, *self._waiting]:
-                if older is not None:
-                    older.preempt.set()
-            self._waiting.append(order)
-            self._cond.notify_all()
-
-    def take(self, timeout: float) -> Order | None:
-        with self._cond:
-            if not self._waiting:
-                self._cond.wait(timeout)
-            while self._waiting:
-                order = self._waiting.popleft()
-                if not order.preempt.is_set():
-                    self.current = order
-                    return order
-                order.finish(RoleResult(PREEMPTED, f"{order.action} replaced by a newer goal before it started"))
-            return None
-
-    def release(self, order: Order) -> None:
-        with self._cond:
-            if self.current is order:
-                self.current = None
-
-    def die(self) -> None:
-        with self._cond:
-            self.dying = True
-            for order in [self.current, *self._waiting]:
-                if order is not None:
-                    order.preempt.set()
-            self._cond.notify_all()
-
-
-class Reporter:
-    """State actualizations to the ground station, sent from a thread so the control loop never waits."""
-
-    def __init__(self, uav_id: int):
-        self.uav_id = uav_id
-        self._queue: queue.Queue = queue.Queue()
-        self._proxy = rospy.ServiceProxy(STATE_SERVICE, StateActualization)
-        self._thread = threading.Thread(target=self._run, name=f"uav_{uav_id}_reporter", daemon=True)
-        self._thread.start()
-
-    def report(self, state: str, critical_event: str = "") -> None:
-        self._queue.put((state, critical_event))
-
-    def _run(self) -> None:
-        while not rospy.is_shutdown():
-            try:
-                state, event = self._queue.get(timeout=0.5)
-            except queue.Empty:
-                continue
-            try:
-                rospy.wait_for_service(STATE_SERVICE, timeout=0.2)
-                answer = self._proxy(id=self.uav_id, state=state, critical_event=event)
-                if not answer.success:
-                    rospy.logwarn_throttle(10, f"ground station refused the state of UAV {self.uav_id}: "
-                                               f"{answer.message}")
-            except (rospy.ROSException, rospy.ServiceException):
-                rospy.logdebug("no ground station to report %r to", state)
-
-
-class SteppingClock:
-    """The control loop's clock, announcing each control step to the simulator (its lockstep).
-
-    While a role flies, every step's simulated time goes out on /magna/uav_{id}/control_step
-    (std_msgs/Float64) before the loop sleeps; `release()` sends -1 when the loop stops
-    stepping (idle hovers on a held setpoint and needs no pacing). magna_sim then never runs
-    more than its ~lockstep_lead ahead of a manager that is flying, however loaded the
-    machine. Nothing listens on a real UAV, and the announcement costs one small message.
-    """
-
-    def __init__(self, rate, topic: str):
-        self.rate = rate
-        self.last = -1.0
-        self.publisher = rospy.Publisher(topic, Float64, queue_size=1, tcp_nodelay=True)
-
-    def now(self) -> float:
-        self.last = rospy.get_time()
-        return self.last
-
-    def sleep(self) -> None:
-        self.publisher.publish(Float64(self.last))
-        self.rate.sleep()
-
-    def release(self) -> None:
-        self.publisher.publish(Float64(-1.0))
+    return Reporter(uav_id, call, running=lambda: not rospy.is_shutdown(),
+                    unreachable=(rospy.ROSException, rospy.ServiceException),
+                    warn=lambda message: rospy.logwarn_throttle(10, message), debug=rospy.logdebug)
 
 
 class UavManagerNode:
@@ -300,8 +96,7 @@ class UavManagerNode:
         self.settings = settings
         own = settings.own
         self.uav_id = own.id
-        ns = f"/magna/uav_{self.uav_id}/"
-        boundaries = rospy.get_param("/magna/world/boundaries", None)
+        boundaries = rospy.get_param(names.WORLD_BOUNDARIES, None)
         self.view = WorldView(self.uav_id, boundaries)
         radii = {c.id: c.safety_radius for c in settings.configs}
         self.data = RosWorldData(self.view, sorted(radii), radii, depth=settings.depth)
@@ -319,24 +114,28 @@ class UavManagerNode:
             self.nai.control(settings.algorithm, "set")
         self.evaluator = Evaluator(own, settings.low_battery)
         # Every recorded step also goes out as a NavigationStep, so the bag can stand in for the CSV.
-        self.navigation = NavigationPublisher(ns + "navigation")
+        self.navigation = NavigationPublisher(names.manager(self.uav_id, "navigation"))
         self.role_number = 0  # roles flown so far; their steps carry it
         self.recorder = Recorder(self.uav_id, [c.id for c in settings.configs if c.id != self.uav_id],
                                  depth=settings.depth, on_row=self._publish_navigation)
-        self.stepping = SteppingClock(rospy.Rate(settings.control_rate), ns + "control_step")
+        step_pub = rospy.Publisher(names.manager(self.uav_id, "control_step"), Float64, queue_size=1,
+                                   tcp_nodelay=True)
+        self.stepping = SteppingClock(rospy.get_time, rospy.Rate(settings.control_rate).sleep,
+                                      lambda sim_time: step_pub.publish(Float64(sim_time)))
         self.manager = UavManager(self.view, self.commander, self.nai, self.evaluator, self.recorder,
-                                  Clock(self.stepping.now, self.stepping.sleep), lock=self.data.lock)
+                                  self.stepping.clock(), lock=self.data.lock)
         self.desk = OrderDesk()
         self.pending: Order | None = None  # the order idle hands to the action's state
-        self.reporter = Reporter(self.uav_id)
+        self.reporter = ground_station_reporter(self.uav_id)
         self.written: set[Path] = set()  # CSVs this node wrote: save_csv may rewrite them
         self._critical_seen = ""
         self._plan_changed_at = float("-inf")  # sim time of the UTM's latest plan change for this UAV
 
+        ns = names.manager(self.uav_id) + "/"
         self.raw_path = rospy.Publisher(ns + "path/raw", PathMsg, queue_size=1, latch=True)
         self.smoothed_path = rospy.Publisher(ns + "path/smoothed", PathMsg, queue_size=1, latch=True)
         self.goal_pub = rospy.Publisher(ns + "goal", PoseStamped, queue_size=1, latch=True)
-        rospy.Subscriber(CRITICAL_TOPIC, String, self._on_critical_event, queue_size=10)
+        rospy.Subscriber(names.GS_CRITICAL_EVENT, String, self._on_critical_event, queue_size=10)
         rospy.Subscriber(ns + "utm_new_flightplan", Float64, self._on_new_flightplan, queue_size=10)
         self.services = [rospy.Service(ns + "algorithm_control", AlgorithmControl, self._on_algorithm_control),
                          rospy.Service(ns + "die", Die, self._on_die)]
@@ -423,11 +222,12 @@ class UavManagerNode:
         return "done"
 
     def _feedback(self, order: Order, step) -> None:
-        if order.server is None or step.goal is None:
+        if step.goal is None:
             return
         feedback_type = getattr(magna_actions, ACTION_TYPES[order.action] + "Feedback")
         position = np.asarray(step.goal.position, dtype=float)
-        order.server.publish_feedback(feedback_type(percent_complete=step.percent, current_target=Point(*position)))
+        feedback = feedback_type(percent_complete=step.percent, current_target=Point(*position))
+        self.servers[order.action].publish_feedback(feedback)
         target = PoseStamped()
         target.header.stamp, target.header.frame_id = rospy.Time.now(), "map"
         target.pose.position = Point(*position)
@@ -443,15 +243,13 @@ class UavManagerNode:
             if action == "save_csv":
                 outcome, message = self._save_csv(goal.path)
             else:
-                order = Order(action, goal, server)
+                order = Order(action, goal, lambda: server.is_preempt_requested() or rospy.is_shutdown())
                 status = server.current_goal_status()
                 if status is not None and not status.goal_id.stamp.is_zero():
                     order.sent_at = status.goal_id.stamp.to_sec()
                 self.desk.submit(order)
-                while not order.done.wait(0.1):
-                    if rospy.is_shutdown():
-                        order.finish(RoleResult(ABORTED, "the node is shutting down"))
-                outcome, message = order.result.outcome, order.result.message
+                answer = order.wait(rospy.is_shutdown)
+                outcome, message = answer.outcome, answer.message
             result = result_type(outcome=outcome, message=message)
             if outcome == "succeeded":
                 server.set_succeeded(result, message)
@@ -513,7 +311,7 @@ class UavManagerNode:
                 if self.view.has_own:
                     return True
             time.sleep(0.01)
-        rospy.logwarn(f"UAV {self.uav_id} manager: no pose on /uav_{self.uav_id}/ual/pose within {limit:g} s; "
+        rospy.logwarn(f"UAV {self.uav_id} manager: no pose on {names.ual(self.uav_id, 'pose')} within {limit:g} s; "
                       f"serving anyway, and roles will abort until one comes")
         return False
 
@@ -523,7 +321,7 @@ class UavManagerNode:
             server.start()
         self.introspection.start()
         rospy.loginfo(f"UAV {self.uav_id} manager ready: {len(self.servers)} action servers under "
-                      f"/magna/uav_{self.uav_id}/, control at {self.settings.control_rate:g} Hz")
+                      f"{names.manager(self.uav_id)}/, control at {self.settings.control_rate:g} Hz")
         try:
             return self.machine.execute()
         finally:
@@ -544,7 +342,7 @@ def main(argv=None) -> int:
     parser.parse_known_args(rospy.myargv(argv)[1:] if argv is None else argv)
     rospy.init_node("uav_manager")  # launch files name it uav_{id}_manager
     try:
-        settings = read_settings()
+        settings = read_settings(rospy.get_param)
     except SettingsError as error:
         rospy.logfatal(f"uav_manager: {error}")
         return 2
