@@ -37,6 +37,11 @@ def battery(uav_id: int | str) -> str:
     return f"/uav_{uav_id}/mavros/battery"
 
 
+def depth_camera(uav_id: int | str, name: str = "") -> str:
+    """`/uav_{id}/camera/depth/{name}`: one UAV's depth camera (`image_raw`, `camera_info`)."""
+    return f"/uav_{uav_id}/camera/depth/{name}" if name else f"/uav_{uav_id}/camera/depth"
+
+
 # --- MAGNA --------------------------------------------------------------------------------------------------
 
 HYPERPARAMETERS = "/magna/hyperparameters"  # the parameter the Master sets before each simulation
@@ -65,6 +70,17 @@ ORCA_COMPUTE_VELOCITY = "/magna/orca3d/compute_velocity"
 ORCA_COMPUTE_VELOCITIES = "/magna/orca3d/compute_velocities"
 
 UTM_FLIGHT_PLANS = "/magna/utm/flight_plans"
+
+
+def utm_flight_plan(uav_id: int | str) -> str:
+    """The UTM's flight plan of one UAV (nav_msgs/Path, latched)."""
+    return f"/magna/utm/flight_plan/{uav_id}"
+
+
+def utm_conflict_path(number: int | str) -> str:
+    """The UTM's `number`-th conflicting path (nav_msgs/Path), drawn for rviz."""
+    return f"/magna/utm/conflict_path/{number}"
+
 
 SM_ROOT = "/magna/sm"
 VIZ_SCENE = "/magna/viz/scene"
