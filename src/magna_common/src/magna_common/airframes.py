@@ -105,6 +105,7 @@ class Airframe:
 
     def require_physics(self) -> None:
         """Raise AirframeError unless the physical blocks of its kind are present."""
+        blocks: tuple[str, ...]
         if self.is_fixed_wing:
             blocks, kind, example = ("body", "fixed_wing", "battery"), "a fixed wing", "plane"
         else:
@@ -218,7 +219,7 @@ def _parse_block(cls, raw: Any, source: Path, block: str):
     if unknown:
         raise AirframeError(f"{source}: '{block}.{sorted(unknown)[0]}': unknown key; "
                             f"allowed: {', '.join(f.name for f in fields(cls))}")
-    values = {}
+    values: dict[str, Any] = {}
     for f in fields(cls):
         where = f"{block}.{f.name}"
         if f.name not in raw:

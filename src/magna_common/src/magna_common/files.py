@@ -79,9 +79,15 @@ def _fsync_dir(folder: Path) -> None:
 
 def write_text_atomically(path: str | os.PathLike, text: str, overwrite: bool = False) -> Path:
     """`write_atomically` for a text that is already in memory."""
-    return write_atomically(path, lambda out: out.write(text), overwrite=overwrite)
+    def write(out: IO[Any]) -> None:
+        out.write(text)
+
+    return write_atomically(path, write, overwrite=overwrite)
 
 
 def write_bytes_atomically(path: str | os.PathLike, data: bytes, overwrite: bool = False) -> Path:
     """`write_atomically` for bytes that are already in memory."""
-    return write_atomically(path, lambda out: out.write(data), overwrite=overwrite, binary=True)
+    def write(out: IO[Any]) -> None:
+        out.write(data)
+
+    return write_atomically(path, write, overwrite=overwrite, binary=True)

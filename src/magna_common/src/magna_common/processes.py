@@ -143,7 +143,7 @@ def tagged_processes(name: str, value: str, exclude: Iterable[int] = ()) -> list
 def kill_tagged(token: str, exclude: Iterable[int] = (), timeout: float = 5.0) -> list[str]:
     """SIGKILL every live process carrying MAGNA_SIM_TOKEN=token (but `exclude`); describe what was killed."""
     exclude = set(exclude)
-    killed = []
+    killed: list[str] = []
     deadline = time.monotonic() + timeout
     while True:
         left = tagged_processes(TOKEN_ENV, token, exclude)

@@ -16,6 +16,7 @@ import uuid
 import xmlrpc.client
 from collections.abc import Sequence
 from pathlib import Path
+from typing import IO, Any
 
 from magna_common.ports import free_port
 from magna_common.processes import TimeoutTransport, end_process_group
@@ -29,10 +30,11 @@ def _master_pid(uri: str, timeout: float) -> int | None:
     """The pid of the master answering at `uri`, or None when nothing answers."""
     transport = TimeoutTransport(timeout)
     try:
-        code, _msg, pid = xmlrpc.client.ServerProxy(uri, transport=transport).getPid("/magna_probe")
+        answer: Any = xmlrpc.client.ServerProxy(uri, transport=transport).getPid("/magna_probe")
     except (OSError, xmlrpc.client.Error):
         return None
-    return pid if code == 1 else None
+    code, _msg, pid = answer  # the ROS master API answers [code, status message, value]
+    return int(pid) if code == 1 else None
 
 
 class RosMaster:
@@ -50,7 +52,7 @@ class RosMaster:
         self.port: int | None = None
         self._master: subprocess.Popen | None = None
         self._children: list[subprocess.Popen] = []
-        self._master_stderr = None
+        self._master_stderr: IO[bytes] | None = None
 
     @property
     def uri(self) -> str:
@@ -76,7 +78,7 @@ class RosMaster:
         for _ in range(attempts):
             self.port = self._requested_port or free_port(self.host)
             # A file, not a pipe: nobody drains the master's stderr while it runs.
-            self._master_stderr = tempfile.TemporaryFile()
+            self._master_stderr = stderr = tempfile.TemporaryFile()
             self._master = subprocess.Popen(
                 ["rosmaster", "--core", "-p", str(self.port), "-w", "3"],
                 env=self.env(), stdout=subprocess.DEVNULL, stderr=self._master_stderr,
@@ -85,8 +87,8 @@ class RosMaster:
             deadline = time.monotonic() + self.start_timeout
             while time.monotonic() < deadline:
                 if self._master.poll() is not None:
-                    self._master_stderr.seek(0)
-                    last_error = self._master_stderr.read().decode(errors="replace").strip()
+                    stderr.seek(0)
+                    last_error = stderr.read().decode(errors="replace").strip()
                     break
                 answering = _master_pid(self.uri, timeout=0.5)
                 if answering == self._master.pid:

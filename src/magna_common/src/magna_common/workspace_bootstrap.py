@@ -22,6 +22,7 @@ from __future__ import annotations
 import importlib.util
 import os
 import sys
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 # Set in the command started again, so a workspace that still cannot run it is reported, not re-entered.
@@ -67,9 +68,9 @@ def is_set_up(root: Path) -> bool:
     return (root / "devel" / "setup.bash").is_file() and os.access(venv_python(root), os.X_OK)
 
 
-def in_workspace(root: Path, prefix: str | None = None, environ: dict | None = None) -> bool:
+def in_workspace(root: Path, prefix: str | None = None, environ: Mapping[str, str] | None = None) -> bool:
     """This is the workspace's venv Python, with the workspace's devel space sourced."""
-    environ = os.environ if environ is None else environ
+    env: Mapping[str, str] = os.environ if environ is None else environ
     venv = root / ".venv"
     try:
         same_python = Path(prefix or sys.prefix).resolve() == venv.resolve()
@@ -77,7 +78,7 @@ def in_workspace(root: Path, prefix: str | None = None, environ: dict | None = N
         same_python = False
     devel = str((root / "devel").resolve())
     sourced = any(part and Path(part).resolve() == Path(devel)
-                  for part in environ.get("CMAKE_PREFIX_PATH", "").split(os.pathsep))
+                  for part in env.get("CMAKE_PREFIX_PATH", "").split(os.pathsep))
     return same_python and sourced
 
 
@@ -99,7 +100,7 @@ def reexec_argv(root: Path, command: list[str]) -> list[str]:
     return ["bash", "-c", _ENV_SCRIPT, "magna-workspace", str(root), str(venv_python(root)), *command]
 
 
-def reexec_env(root: Path, python_path: list[Path] = (), environ: dict | None = None) -> dict:
+def reexec_env(root: Path, python_path: Sequence[Path] = (), environ: Mapping[str, str] | None = None) -> dict:
     env = dict(os.environ if environ is None else environ)
     env[REEXEC_MARK] = str(root)
     extra = [str(p) for p in python_path]
@@ -108,12 +109,13 @@ def reexec_env(root: Path, python_path: list[Path] = (), environ: dict | None = 
     return env
 
 
-def decide(root: Path | None, modules=(), *, prefix: str | None = None, environ: dict | None = None) -> str:
+def decide(root: Path | None, modules=(), *, prefix: str | None = None,
+           environ: Mapping[str, str] | None = None) -> str:
     """What `run_in_workspace` does: 'run' (here), 'reexec', or an error message."""
-    environ = os.environ if environ is None else environ
-    if root is not None and in_workspace(root, prefix, environ):
+    env: Mapping[str, str] = os.environ if environ is None else environ
+    if root is not None and in_workspace(root, prefix, env):
         return "run"
-    if root is not None and is_set_up(root) and not environ.get(REEXEC_MARK):
+    if root is not None and is_set_up(root) and not env.get(REEXEC_MARK):
         return "reexec"
     missing = missing_modules(modules)
     if not missing:
@@ -141,7 +143,7 @@ def run_in_workspace(prog: str, anchor: str | os.PathLike, command: list[str], m
     verdict = decide(root, modules)
     if verdict == "run":
         return
-    if verdict == "reexec":
+    if verdict == "reexec" and root is not None:
         argv = reexec_argv(root, command)
         env = reexec_env(root, python_path or [])
         sys.stdout.flush()
