@@ -23,7 +23,7 @@ run: setup  ## the main job: a default batch of simulations (RUN_ARGS="--n-iter 
 test: setup  ## linters, unit tests (pytest) and integration tests (gtest, rostest), one summary
 	@bash scripts/test.sh
 
-lint: setup  ## ruff and catkin_lint only
+lint: setup  ## ruff, catkin_lint, mypy and the layering check only
 	@bash scripts/test.sh --lint-only
 
 bench: setup  ## benchmarks: print figures, never fail on a time

@@ -57,7 +57,7 @@ def declared_layers(pyproject: Path = ROOT / "pyproject.toml") -> list[list[str]
     try:
         layers = config["tool"]["magna"]["layers"]["order"]
     except KeyError:
-        raise SystemExit(f"{pyproject}: no [tool.magna.layers] order = [[...], ...]; declare the layers there")
+        raise SystemExit(f"{pyproject}: no [tool.magna.layers] order = [[...], ...]; declare the layers there") from None
     return [list(layer) for layer in layers]
 
 
@@ -68,7 +68,7 @@ def _is_test(path: Path) -> bool:
 
 def _python_files(folder: Path) -> list[Path]:
     """The package's modules and its nodes (executables without .py that start with a python shebang)."""
-    files = [p for p in folder.rglob("*.py") if not _is_test(p.relative_to(ROOT))]
+    files = [p for p in folder.rglob("*.py") if not _is_test(p.relative_to(folder))]
     nodes = folder.parent.parent / "nodes" if folder.parent.name == "src" else None
     if nodes is not None and nodes.is_dir():
         for node in sorted(nodes.iterdir()):

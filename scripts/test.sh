@@ -27,6 +27,8 @@ no_leftovers() {
 
 step "ruff" ruff check .
 step "catkin_lint" catkin_lint -W2 --strict --offline --quiet src
+step "mypy (the typed packages of pyproject.toml)" python -m mypy
+step "layers (imports go down, package.xml matches)" python scripts/import_graph.py
 if [ "${1:-}" != "--lint-only" ]; then
   step "pytest (unit and live-master tests)" python -m pytest -q --junitxml="$results/pytest.xml"
   step "catkin test (gtest and rostest)" catkin test --no-status --summarize
@@ -39,7 +41,7 @@ if [ "${1:-}" != "--lint-only" ]; then
   summary_status=$?
 else  # lint writes no result files: its summary is the count of linters that passed
   lint_failed=${#failed_steps[@]}
-  printf '\nlint: %d passed, %d failed (ruff, catkin_lint)\n' $((2 - lint_failed)) "$lint_failed"
+  printf '\nlint: %d passed, %d failed (ruff, catkin_lint, mypy, layers)\n' $((4 - lint_failed)) "$lint_failed"
 fi
 if [ ${#failed_steps[@]} -gt 0 ]; then
   echo "failed steps: ${failed_steps[*]}" >&2
