@@ -57,7 +57,8 @@ def declared_layers(pyproject: Path = ROOT / "pyproject.toml") -> list[list[str]
     try:
         layers = config["tool"]["magna"]["layers"]["order"]
     except KeyError:
-        raise SystemExit(f"{pyproject}: no [tool.magna.layers] order = [[...], ...]; declare the layers there") from None
+        raise SystemExit(f"{pyproject}: no [tool.magna.layers] order = [[...], ...]; "
+                         "declare the layers there") from None
     return [list(layer) for layer in layers]
 
 
