@@ -326,6 +326,27 @@ def test_the_smoothed_paths_last_stretch_aims_at_the_waypoint_itself():
     assert np.array_equal(role._carrot(target + [-0.5, 1.5, 0], target), target)
 
 
+def test_a_smoothed_path_that_turns_back_on_itself_is_flown_on_instead_of_going_down_again():
+    """Down to a delivery point and up again (Delivery/2UAVs_follow_ad_safe): the spline's two legs lie
+    millimetres apart, and once the delivery point was reached the UAV was sent back down after each climb
+    until the path ended stuck over the recipient."""
+    manager, world, uavs, recorder, config = setup([[0, 14, 0]])
+    take_off(manager, uavs, 4.0)
+    approach, delivery, next_approach = [0, 15, 4], [0, 15, 2], [15, 15, 4]
+    role = FollowPathRole([approach, delivery, approach, next_approach], config.accepted_target_radius,
+                          smooth_path_mode=2)
+    heights_towards_next_approach = []
+
+    def watch(step):
+        if role.tracker.index == 3:
+            heights_towards_next_approach.append(uavs[0].position[2])
+
+    result = fly(manager, role, feedback=watch)
+    assert result.outcome == "succeeded", result.message
+    # the approach point is reached again (0.9 m below it at the least) and the UAV never goes back down
+    assert min(heights_towards_next_approach) >= approach[2] - config.accepted_target_radius - 0.1
+
+
 def test_a_pilot_take_over_ends_the_role_aborted_and_magna_stops_commanding():
     manager, world, uavs, recorder, config = setup([[0, 0, 0]])
     take_off(manager, uavs)

@@ -130,6 +130,7 @@ class FollowPathRole(Role):
         self.smoothed = smooth_path(self.waypoints, smooth_path_mode) if smooth_path_mode else self.waypoints
         self.smooth = bool(smooth_path_mode) and len(self.smoothed) > len(self.waypoints)
         self.lookahead = lookahead  # m along the smoothed path ahead of the UAV
+        self.on_path = 0  # the smoothed sample the UAV was last placed at: it only moves forward
         self.sent_waypoint: int | None = None
         self._progress = (-1, math.inf, 0.0)  # (waypoint index, best distance to it, role time of that best)
 
@@ -170,10 +171,17 @@ class FollowPathRole(Role):
 
     def _carrot(self, position, target):
         """A point `lookahead` metres along the smoothed path past the point nearest the UAV,
-        never past the current waypoint's nearest sample (so no waypoint is skipped)."""
-        distances = np.linalg.norm(self.smoothed - position, axis=1)
-        limit = int(np.argmin(np.linalg.norm(self.smoothed - target, axis=1)))
-        start = int(np.argmin(distances[:limit + 1]))
+        never past the current waypoint's sample (so no waypoint is skipped).
+
+        Both are searched only from where the UAV was last placed on the path onwards (the original's path
+        follower searched near its last place too): a path that turns back on itself, down to a delivery point
+        and up again, passes twice by the same points, and the nearest sample of the whole path then swaps legs
+        with millimetres of sideways drift, sending the UAV back down after each climb until the path ends stuck."""
+        here = self.on_path
+        # the waypoint's visit still to come: a path may visit the same point twice (before and after a delivery)
+        limit = here + int(np.argmin(np.linalg.norm(self.smoothed[here:] - target, axis=1)))
+        start = here + int(np.argmin(np.linalg.norm(self.smoothed[here:limit + 1] - position, axis=1)))
+        self.on_path = start
         steps = np.linalg.norm(np.diff(self.smoothed[start:limit + 1], axis=0), axis=1)
         ahead = int(np.searchsorted(np.cumsum(steps), self.lookahead))
         if start + ahead >= limit:
