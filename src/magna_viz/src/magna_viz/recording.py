@@ -31,6 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
+from magna_common.ros_names import WORLD_MARKERS
+from magna_common.simulation_bag import MARKERS, SM_KINDS, UAL_KINDS, BagError, read_simulation_bag
 from magna_viz.recorded_world import RecordedWorld, world_from_markers, world_from_record
 from magna_viz.timeline import StatusEvent, Timeline, build_timeline
 
@@ -39,12 +41,9 @@ MISSION_NAME = "mission.json"
 WORLD_NAME = "world.json"
 RESULT_NAME = "result.json"
 CSV_PATTERN = re.compile(r"uav_(\d+)\.csv")
-MARKERS_TOPIC = "/magna/world/markers"
 DEFAULT_COLORS = ((0.12, 0.47, 0.71), (1.0, 0.5, 0.05), (0.17, 0.63, 0.17), (0.84, 0.15, 0.16),
                   (0.58, 0.4, 0.74), (0.55, 0.34, 0.29), (0.89, 0.47, 0.76), (0.5, 0.5, 0.5))
-_UAL = re.compile(r"/uav_(\d+)/ual/(pose|velocity)")
-_MAGNA_UAV = re.compile(r"/magna/uav_(\d+)/(goal|path/raw|path/smoothed)")
-_SM = re.compile(r"/magna/sm/([^/]+)/(status|structure)")
+_BAG_KINDS = (*UAL_KINDS, "goal", "path/raw", "path/smoothed", *SM_KINDS, MARKERS)  # all but the navigation steps
 _CSV_COLUMNS = ("time", "pos.x", "pos.y", "pos.z", "vel.x", "vel.y", "vel.z", "nearest_uav_gap",
                 "nearest_obstacle_gap", "collision")
 
@@ -184,12 +183,12 @@ def load_recording(sim_dir: str | Path) -> Recording:
     if bag_file.is_file():
         try:
             bag = _read_bag(bag_file)
-        except Exception as err:  # rosbags has an error type per format; any means this bag cannot be used
+        except BagError as err:
             if not csvs:
-                raise RecordingError(f"{bag_file}: cannot read the bag ({err}) and there are no uav_<id>.csv: "
+                raise RecordingError(f"{bag_file}: cannot read the bag ({err.reason}) and there are no uav_<id>.csv: "
                                      "nothing to plot; fly the simulation again") from None
-            notes.append(f"{BAG_NAME} cannot be read ({err}): no state-machine timeline, paths, goals or latency; "
-                         "trajectories from the CSVs")
+            notes.append(f"{BAG_NAME} cannot be read ({err.reason}): no state-machine timeline, paths, goals or "
+                         "latency; trajectories from the CSVs")
     else:
         notes.append(f"{BAG_NAME} missing (flown with --no-bag?): no state-machine timeline, paths, goals or "
                      "latency; trajectories from the CSVs")
@@ -295,53 +294,32 @@ class _BagData:
     structures: dict = field(default_factory=dict)  # path -> ContainerStructure, the last heard
 
 
-def _seconds(header, log_time: int) -> float:
-    """The message's stamp; an unstamped one counts when the bag got it (as magna_uav.ros_data does)."""
-    ns = int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
-    return (ns if ns > 0 else int(log_time)) / 1e9
-
-
 def _xyz(v) -> tuple[float, float, float]:
     return (float(v.x), float(v.y), float(v.z))
 
 
 def _read_bag(path: Path) -> _BagData:
-    from rosbags.highlevel import AnyReader  # takes the message definitions from the bag itself
-
     from magna_sm.introspection import msg_to_structure
 
+    bag = read_simulation_bag(path, kinds=_BAG_KINDS)
     data = _BagData()
-    with AnyReader([path]) as reader:
-        wanted = [c for c in reader.connections if _UAL.fullmatch(c.topic) or _MAGNA_UAV.fullmatch(c.topic)
-                  or _SM.fullmatch(c.topic) or c.topic == MARKERS_TOPIC]
-        if reader.message_count:
-            data.start, data.end = reader.start_time / 1e9, reader.end_time / 1e9
-        for connection, log_time, raw in reader.messages(connections=wanted):
-            msg = reader.deserialize(raw, connection.msgtype)
-            topic = connection.topic
-            if topic == MARKERS_TOPIC:
-                data.markers.append((log_time / 1e9, msg))
-            elif match := _UAL.fullmatch(topic):
-                uav, kind = int(match.group(1)), match.group(2)
-                if kind == "pose":
-                    data.poses[uav].append((_seconds(msg.header, log_time), _xyz(msg.pose.position)))
-                else:
-                    data.velocities[uav].append((_seconds(msg.header, log_time), _xyz(msg.twist.linear)))
-            elif match := _MAGNA_UAV.fullmatch(topic):
-                uav, kind = int(match.group(1)), match.group(2)
-                t = _seconds(msg.header, log_time)
-                if kind == "goal":
-                    data.goals[uav].append((t, _xyz(msg.pose.position)))
-                else:
-                    points = np.array([_xyz(p.pose.position) for p in msg.poses], dtype=float).reshape(-1, 3)
-                    target = data.raw_paths if kind == "path/raw" else data.smoothed_paths
-                    target[uav].append(PathRecord(t, points))
-            elif match := _SM.fullmatch(topic):
-                if match.group(2) == "status":
-                    data.statuses.append(StatusEvent(_seconds(msg.header, log_time), msg.path,
-                                                     tuple(msg.active_states), msg.last_outcome, msg.info))
-                else:
-                    data.structures[msg.path] = msg_to_structure(msg)
+    if bag.message_count:
+        data.start, data.end = bag.start / 1e9, bag.end / 1e9
+    data.markers = [(m.log_time / 1e9, m.msg) for m in bag.of(MARKERS)]
+    for m in bag.of("pose"):
+        data.poses[m.owner].append((m.time, _xyz(m.msg.pose.position)))
+    for m in bag.of("velocity"):
+        data.velocities[m.owner].append((m.time, _xyz(m.msg.twist.linear)))
+    for m in bag.of("goal"):
+        data.goals[m.owner].append((m.time, _xyz(m.msg.pose.position)))
+    for kind, target in (("path/raw", data.raw_paths), ("path/smoothed", data.smoothed_paths)):
+        for m in bag.of(kind):
+            points = np.array([_xyz(p.pose.position) for p in m.msg.poses], dtype=float).reshape(-1, 3)
+            target[m.owner].append(PathRecord(m.time, points))
+    data.statuses = [StatusEvent(m.time, m.msg.path, tuple(m.msg.active_states), m.msg.last_outcome, m.msg.info)
+                     for m in bag.of("status")]
+    for m in bag.of("structure"):
+        data.structures[m.msg.path] = msg_to_structure(m.msg)
     return data
 
 
@@ -430,7 +408,7 @@ def _fill_proximity(uavs: dict[int, UavRecord], frames: dict, csvs: dict[int, Pa
         elif uav in frames:
             record.proximity = _csv_proximity(frames[uav], uav, radii, csvs[uav].name)
     if bag is not None and not markers and any(u.proximity is not None for u in uavs.values()):
-        notes.append(f"{BAG_NAME} has no {MARKERS_TOPIC}: obstacle distances from the CSVs only")
+        notes.append(f"{BAG_NAME} has no {WORLD_MARKERS}: obstacle distances from the CSVs only")
 
 
 def _csv_proximity(frame, uav: int, radii: dict[int, float], source: str) -> Proximity:

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from magna_common.files import write_atomically
+from magna_common.simulation_bag import BagError, read_simulation_bag
 from magna_viz import rviz_config as rc
 
 BAG_NAME = "simulation.bag"
@@ -36,8 +37,7 @@ SCENE_TOPIC = "/magna/viz/scene"
 BAG_WORLD_TOPIC = "/magna/viz/bag_world"  # the bag's /magna/world/markers, relayed by the scene node
 WORLD_TOPIC = "/magna/world/markers"
 NODES_DIR = Path(__file__).resolve().parents[2] / "nodes"
-POSE_TOPIC = re.compile(r"^/uav_(\d+)/ual/pose$")
-PATH_TOPIC = re.compile(r"^/magna/uav_(\d+)/(path/raw|path/smoothed|goal)$")
+FLIGHT_KINDS = ("pose", "goal", "path/raw", "path/smoothed")  # where the UAVs flew and were sent
 PROGRESS = re.compile(rb"Duration:\s*([0-9.]+)\s*/\s*([0-9.]+)")
 FITS = ("world", "uavs", "none")
 GIF_MAX_WIDTH = 800
@@ -130,30 +130,21 @@ def resolve_source(source: Path) -> tuple[Path, Path]:
 
 def read_bag(bag: Path) -> BagSummary:
     """Duration, UAVs and where they flew; ReplayError when the file is not a readable bag."""
-    import rosbag
-
     try:
-        with rosbag.Bag(str(bag)) as reader:
-            info = reader.get_type_and_topic_info()
-            messages = reader.get_message_count()
-            if messages == 0:
-                raise ReplayError(f"{bag}: the bag holds no messages; nothing to replay")
-            start, end = reader.get_start_time(), reader.get_end_time()
-            topics = list(info.topics)
-            uav_ids = sorted({int(m.group(1)) for t in topics if (m := POSE_TOPIC.match(t))})
-            points = []
-            wanted = [t for t in topics if POSE_TOPIC.match(t) or PATH_TOPIC.match(t)]
-            for _topic, msg, _t in reader.read_messages(topics=wanted):
-                if hasattr(msg, "poses"):
-                    points += [(s.pose.position.x, s.pose.position.y, s.pose.position.z) for s in msg.poses]
-                else:
-                    p = msg.pose.position
-                    points.append((p.x, p.y, p.z))
-    except ReplayError:
-        raise
-    except Exception as err:  # rosbag raises several kinds (ROSBagException, ROSBagFormatException, struct errors)
-        raise ReplayError(f"{bag}: not a readable ROS bag ({type(err).__name__}: {err})") from None
-    return BagSummary(bag, start, end, messages, uav_ids, rc.box_of_points(points))
+        data = read_simulation_bag(bag, kinds=FLIGHT_KINDS)
+    except BagError as err:
+        raise ReplayError(str(err)) from None
+    if data.message_count == 0:
+        raise ReplayError(f"{bag}: the bag holds no messages; nothing to replay")
+    points = []
+    for message in (m for kind in FLIGHT_KINDS for m in data.of(kind)):
+        if hasattr(message.msg, "poses"):  # a path
+            points += [(s.pose.position.x, s.pose.position.y, s.pose.position.z) for s in message.msg.poses]
+        else:
+            p = message.msg.pose.position
+            points.append((p.x, p.y, p.z))
+    return BagSummary(bag, data.start / 1e9, data.end / 1e9, data.message_count, data.uav_ids("pose"),
+                      rc.box_of_points(points))
 
 
 def read_world(sim_dir: Path) -> dict | None:
