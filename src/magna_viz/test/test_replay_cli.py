@@ -12,7 +12,7 @@ from geometry_msgs.msg import PoseStamped
 
 from magna_common.ros_master import RosMaster
 from magna_master import cli
-from magna_viz import replay
+from magna_viz.replay import plan as replay
 from tests.support import ROOT
 
 MISSION = ROOT / "missions" / "Gym" / "2UAVs_Crossing_ORCA.json"

@@ -8,7 +8,7 @@ import math
 import pytest
 
 from magna_viz import rviz_config as rc
-from magna_viz.replay import view_box
+from magna_viz.replay.plan import view_box
 from magna_viz.scene import DEFAULT_TOPIC, NAMESPACES
 
 CONFIGS = sorted(rc.RVIZ_DIR.glob("*.rviz"))

@@ -61,7 +61,7 @@ def _size(text: str) -> tuple[int, int]:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from magna_viz.replay import FITS
+    from magna_viz.replay.plan import FITS
 
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
     parser.epilog = _EPILOG
@@ -95,7 +95,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def options_from(args):
     """ReplayOptions from parsed arguments; UsageError for headless options without --headless."""
-    from magna_viz.replay import ReplayOptions
+    from magna_viz.replay.plan import ReplayOptions
 
     if not args.headless:
         given = [flag for flag, value in (("--every", args.every), ("-o/--output", args.output),
@@ -132,7 +132,9 @@ def mission_file(spec: str | None, search_dirs=()) -> Path | None:
 
 
 def run(args) -> int:
-    from magna_viz.replay import Replay, ReplayError, ReplayFailure, make_plan
+    from magna_viz.replay.errors import ReplayError, ReplayFailure
+    from magna_viz.replay.plan import FINAL_NAME, GIF_NAME, MP4_NAME, make_plan
+    from magna_viz.replay.processes import Replay
 
     options = options_from(args)
     try:
@@ -153,7 +155,7 @@ def run(args) -> int:
         frames = [p for p in written if p.name.startswith("frame_")]
         if frames:
             say(f"frames:  {len(frames)} in {plan.out_dir} (frame_0001.png .. {frames[-1].name})")
-        labels = {"final.png": "final:", "replay.gif": "gif:", "replay.mp4": "mp4:"}
+        labels = {FINAL_NAME: "final:", GIF_NAME: "gif:", MP4_NAME: "mp4:"}
         for path in written:
             if path.name in labels:
                 say(f"{labels[path.name]:8} {path}")

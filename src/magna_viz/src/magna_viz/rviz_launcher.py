@@ -24,7 +24,7 @@ from magna_viz import rviz_config as rc
 def fitted_config(world: str, record: dict | None, flights, override: Path | None, name: str) -> tuple[Path, str]:
     """(the rviz file to open, a note for the log): the family's configuration, fitted to the world
     record (a recorded world.json or a resolved world file) and the flights when known."""
-    from magna_viz.replay import view_box
+    from magna_viz.replay.plan import view_box
 
     choice = rc.choose_config(world, override)
     config = rc.load_config(choice.path)
@@ -42,7 +42,8 @@ def fitted_config(world: str, record: dict | None, flights, override: Path | Non
 
 def _sim_dir_inputs(sim_dir: Path):
     """(world name, recorded world, flight box) of a simulation folder."""
-    from magna_viz.replay import ReplayError, read_bag, read_world
+    from magna_viz.replay.errors import ReplayError
+    from magna_viz.replay.plan import read_bag, read_world
 
     flights = None
     if (sim_dir / "simulation.bag").is_file():
