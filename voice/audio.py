@@ -8,17 +8,17 @@ from __future__ import annotations
 
 import io
 import math
-import os
 import queue
 import re
 import struct
-import tempfile
 import wave
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
 import numpy as np
+
+from magna_common.files import write_atomically
 
 SAMPLE_RATE = 16000
 FRAME_SECONDS = 0.03
@@ -168,23 +168,16 @@ def decode_wav(data: bytes, name: str = "<wav bytes>") -> np.ndarray:
 
 def write_wav(path, samples: np.ndarray) -> Path:
     """Write 16 kHz mono 16-bit PCM atomically: a reader (or a crash) never sees a half-written file."""
-    path = Path(path)
     data = to_int16(np.asarray(samples).reshape(-1))
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            with wave.open(f, "wb") as w:
-                w.setnchannels(1)
-                w.setsampwidth(2)
-                w.setframerate(SAMPLE_RATE)
-                w.writeframes(data.astype("<i2").tobytes())
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+
+    def write(f) -> None:
+        with wave.open(f, "wb") as w:
+            w.setnchannels(1)
+            w.setsampwidth(2)
+            w.setframerate(SAMPLE_RATE)
+            w.writeframes(data.astype("<i2").tobytes())
+
+    return write_atomically(path, write, overwrite=True, binary=True)
 
 
 def prepare_for_recognition(samples: np.ndarray, seed: int = 0, pad_seconds: float = 0.3,

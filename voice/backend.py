@@ -8,9 +8,8 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
+from magna_common import ros_names
 from voice.interpret import Command, Parameter, parameter_json
-
-SERVICE = "/magna/gs/command"
 
 
 class BackendError(RuntimeError):
@@ -54,7 +53,7 @@ def to_request_fields(command: Command) -> dict:
 class GroundStationClient:
     """Calls /magna/gs/command; one per process."""
 
-    def __init__(self, service: str = SERVICE, node_name: str = "magna_voice", master_wait: float = 0.0):
+    def __init__(self, service: str = ros_names.GS_COMMAND, node_name: str = "magna_voice", master_wait: float = 0.0):
         """master_wait: seconds to wait for a ROS master that is not up yet (a mission still starting)."""
         import rospy
         from magna_msgs.msg import NamedValue
@@ -86,7 +85,7 @@ class GroundStationClient:
     def uav_ids(self) -> list[int]:
         """The UAVs flying now (every UAL server lists its id in /ual_ids)."""
         try:
-            return sorted(int(i) for i in self._rospy.get_param("/ual_ids", []))
+            return sorted(int(i) for i in self._rospy.get_param(ros_names.UAL_IDS, []))
         except (TypeError, ValueError, self._rospy.ROSException):
             return []
 

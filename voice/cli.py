@@ -13,6 +13,7 @@ import json
 import sys
 from pathlib import Path
 
+from magna_common import ros_names
 from magna_common.cli_vocabulary import add_output
 
 HELP = "command a running mission by voice or keyboard, offline: assistant, parse, transcribe"
@@ -105,11 +106,11 @@ def _assistant(args, ids, recognizer=None):
     client = GroundStationClient(args.service, master_wait=args.wait)  # the mission may still be starting
     client.wait(args.wait)
     if not ids:  # the UAVs the mission flies; it may still be spawning them
-        print("waiting for the mission's UAVs (/ual_ids) ...", file=sys.stderr)
+        print(f"waiting for the mission's UAVs ({ros_names.UAL_IDS}) ...", file=sys.stderr)
         ids = client.wait_for_uavs(args.wait)
         if not ids:
-            print(f"no UAVs in /ual_ids after {args.wait:g} s: questions will not offer UAV ids (--uavs gives "
-                  "them)", file=sys.stderr)
+            print(f"no UAVs in {ros_names.UAL_IDS} after {args.wait:g} s: questions will not offer UAV ids "
+                  "(--uavs gives them)", file=sys.stderr)
     return Assistant(client.send, ids, say, recognizer)
 
 
@@ -200,8 +201,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="use Google's online recogniser instead of the offline one (needs internet)")
     parser.add_argument("--speak", action="store_true", help="speak questions and answers back with espeak-ng")
     parser.add_argument("--dry-run", action="store_true", help="understand and print, send nothing (no ROS needed)")
-    parser.add_argument("--uavs", metavar="IDS", help="UAV ids, e.g. 1,2,3 (default: the ids in /ual_ids)")
-    parser.add_argument("--service", default="/magna/gs/command", help="the ground station's command service")
+    parser.add_argument("--uavs", metavar="IDS", help=f"UAV ids, e.g. 1,2,3 (default: the ids in {ros_names.UAL_IDS})")
+    parser.add_argument("--service", default=ros_names.GS_COMMAND, help="the ground station's command service")
     parser.add_argument("--wait", type=float, default=30.0, metavar="S",
                         help="seconds to wait for each of: the ROS master, the ground station's service and "
                              "(without --uavs) the mission's UAVs (default %(default)g)")

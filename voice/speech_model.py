@@ -31,6 +31,8 @@ from pathlib import Path
 import pocketsphinx
 from pocketsphinx.lm import ArpaBoLM
 
+from magna_common.files import write_atomically
+
 MODEL_DIR = Path(pocketsphinx.get_model_path()) / "en-us"
 ACOUSTIC_MODEL = MODEL_DIR / "en-us"
 CMUDICT = MODEL_DIR / "cmudict-en-us.dict"
@@ -236,38 +238,9 @@ def build_speech_model(sentences: Iterable[str], out_dir: Path | str, extra_word
             lm.read_word_file(f.name)  # unigrams with count 1 for words no sentence has
     lm.compute()
     lm.sent_count = len(lines)  # for the header comment; ArpaBoLM leaves it at 0
-    with _AtomicWrite(out_dir / LM_FILE) as (f, commit):
-        lm.write(f)
-        commit()
-    with _AtomicWrite(out_dir / DICT_FILE) as (f, commit):
-        f.writelines(dict_lines)
-        commit()
+    write_atomically(out_dir / LM_FILE, lm.write, overwrite=True)
+    write_atomically(out_dir / DICT_FILE, lambda f: f.writelines(dict_lines), overwrite=True)
     return SpeechModel(out_dir / LM_FILE, out_dir / DICT_FILE, tuple(words))
-
-
-class _AtomicWrite:
-    """A temporary file beside path, renamed onto path by commit(); removed if not committed."""
-
-    def __init__(self, path: Path):
-        self.path = path
-
-    def __enter__(self):
-        fd, self.tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=".tmp", dir=self.path.parent)
-        self.file = os.fdopen(fd, "w", encoding="utf-8")
-        self.committed = False
-        return self.file, self._commit
-
-    def _commit(self):
-        self.file.close()
-        os.replace(self.tmp, self.path)
-        self.committed = True
-
-    def __exit__(self, *exc):
-        if not self.file.closed:
-            self.file.close()
-        if not self.committed:
-            Path(self.tmp).unlink(missing_ok=True)
-        return False
 
 
 @functools.lru_cache(maxsize=1)

@@ -46,10 +46,11 @@ def test_every_help_has_examples_that_name_commands_that_exist():
 
 STAND_IN_GS = """
 import rospy
+from magna_common import ros_names
 from magna_msgs.srv import GroundStationCommand, GroundStationCommandResponse
 
 rospy.init_node("stand_in_ground_station")
-rospy.Service("/magna/gs/command", GroundStationCommand,
+rospy.Service(ros_names.GS_COMMAND, GroundStationCommand,
               lambda req: GroundStationCommandResponse(True, f"{req.action} for UAV {req.agent}", []))
 rospy.spin()
 """
@@ -84,6 +85,7 @@ def test_the_assistant_waits_for_a_mission_that_is_still_starting(tmp_path):
 SPAWNING_GS = """
 import json, sys
 import rospy
+from magna_common import ros_names
 from magna_msgs.srv import GroundStationCommand, GroundStationCommandResponse
 
 log, asked = open(sys.argv[1], "a"), []
@@ -100,8 +102,8 @@ def answer(req):
     return GroundStationCommandResponse(ok, message, [])
 
 rospy.init_node("spawning_ground_station")
-rospy.set_param("/ual_ids", [1, 2])
-rospy.Service("/magna/gs/command", GroundStationCommand, answer)
+rospy.set_param(ros_names.UAL_IDS, [1, 2])
+rospy.Service(ros_names.GS_COMMAND, GroundStationCommand, answer)
 rospy.spin()
 """
 
