@@ -10,7 +10,6 @@ mismatch removes the files and raises.
 from __future__ import annotations
 
 import json
-import os
 import warnings
 from pathlib import Path
 
@@ -18,6 +17,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from magna_common.files import write_atomically, write_text_atomically
 from magna_uav.nai.inputs import input_names, output_names
 from magna_uav.nai.neural import load_model, spec_path
 from mlr.config import RunConfig
@@ -97,19 +97,16 @@ def export(net: nn.Module, run: RunConfig, prepared: Prepared, path: str | Path,
             if target.exists():
                 raise FileExistsError(f"{target}: already exists; pass --force to replace it, or choose "
                                       "another path")
-    path.parent.mkdir(parents=True, exist_ok=True)
     module = wrap(net, prepared)
-    tmp_pt, tmp_json = path.with_name(f".{path.name}.tmp"), spec_file.with_name(f".{spec_file.name}.tmp")
     try:
         with warnings.catch_warnings():  # torch 2.13 calls TorchScript deprecated; it is the format the NAI flies
             warnings.filterwarnings("ignore", category=DeprecationWarning)
-            torch.jit.script(module).save(str(tmp_pt))
-        tmp_json.write_text(json.dumps(spec_for(run, about), indent=2) + "\n")
-        os.replace(tmp_pt, path)
-        os.replace(tmp_json, spec_file)
+            scripted = torch.jit.script(module)
+            write_atomically(path, lambda out: torch.jit.save(scripted, out), overwrite=True, binary=True)
+        write_text_atomically(spec_file, json.dumps(spec_for(run, about), indent=2) + "\n", overwrite=True)
         check_export(module, path, prepared)
     except BaseException:
-        for leftover in (tmp_pt, tmp_json, path, spec_file):
+        for leftover in (path, spec_file):  # a network without its spec, or one that failed its check
             leftover.unlink(missing_ok=True)
         raise
     return path

@@ -3,13 +3,11 @@ side by side, as Markdown, JSON and a figure."""
 from __future__ import annotations
 
 import json
-import os
 import statistics
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from magna_common.files import write_text_atomically
+from magna_common.files import write_atomically, write_text_atomically
 from mlr.nn_mission import FlyError
 
 TARGET_RATIO = 0.95  # the project's target: missions flown by the network collision-free at >= 95% of ORCA's rate
@@ -210,16 +208,8 @@ def draw_comparison(comparison: Comparison, path: Path) -> Path:
                        textcoords="offset points", ha="center", va="bottom", fontsize=8)
     figure.suptitle(f"{comparison.mission}: {o.simulations} vs {n.simulations} simulations", fontsize=10)
     figure.tight_layout()
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".png", dir=path.parent)
-    os.close(fd)
-    try:
-        figure.savefig(tmp, dpi=100)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+    return write_atomically(path, lambda out: figure.savefig(out, format="png", dpi=100), overwrite=True,
+                            binary=True)
 
 
 def write_comparison(comparison: Comparison, out: Path) -> list[Path]:

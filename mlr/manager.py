@@ -16,13 +16,13 @@ from __future__ import annotations
 import csv
 import io
 import json
-import os
 import shutil
 import sys
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+from magna_common.files import write_text_atomically
 from mlr import cache
 from mlr.config import RunConfig, Sweep
 from mlr.pickler import PicklerError, find_simulations
@@ -92,12 +92,6 @@ def _table(results: list[RunResult], runs: list[RunConfig], swept: tuple[str, ..
     return out.getvalue(), "\n".join(md) + "\n"
 
 
-def _write(path: Path, text: str) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
-
-
 def run_sweep(sweep: Sweep, out: Path | None = None, overwrite: bool = False, force_data: bool = False,
               export_best: bool = True, progress: bool = True, log: Log = _stderr) -> SweepOutcome:
     from tqdm import tqdm
@@ -157,12 +151,13 @@ def run_sweep(sweep: Sweep, out: Path | None = None, overwrite: bool = False, fo
             f"({result.steps_per_second:.0f} steps/s)")
         results.append(result)
     table_csv, table_md = _table(results, list(sweep.runs), sweep.swept)
-    _write(out / "results.csv", table_csv)
-    _write(out / "results.md", table_md)
+    write_text_atomically(out / "results.csv", table_csv, overwrite=True)
+    write_text_atomically(out / "results.md", table_md, overwrite=True)
     best_index = max(range(len(results)), key=lambda i: (results[i].val_accuracy, -results[i].val_loss))
     best = results[best_index]
-    _write(out / "best.json", json.dumps({"run": best.name, "result": asdict(best),
-                                          "config": sweep.runs[best_index].as_dict()}, indent=2) + "\n")
+    write_text_atomically(out / "best.json", json.dumps({"run": best.name, "result": asdict(best),
+                                                         "config": sweep.runs[best_index].as_dict()}, indent=2)
+                          + "\n", overwrite=True)
     exported = None if overwrite else _export_is_current(out, sweep, names)
     if exported is not None:
         log(f"best: {best.name}, exported before to {exported}")

@@ -14,9 +14,9 @@ A run directory holds:
 """
 from __future__ import annotations
 
+import functools
 import json
 import math
-import os
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -25,6 +25,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from magna_common.files import write_atomically, write_text_atomically
 from mlr.config import RunConfig
 from mlr.metrics import accuracy
 from mlr.models import build_model, parameter_count
@@ -96,12 +97,6 @@ def _optimizer(run: RunConfig, model: nn.Module) -> torch.optim.Optimizer:
     if run.optimizer == "adam":
         return torch.optim.Adam(model.parameters(), lr=run.learning_rate)
     return torch.optim.SGD(model.parameters(), lr=run.learning_rate)
-
-
-def _save_atomically(obj, path: Path) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    torch.save(obj, tmp)
-    os.replace(tmp, path)
 
 
 def _hparams(run: RunConfig) -> dict:
@@ -185,8 +180,9 @@ def train_run(run: RunConfig, prepared: Prepared, run_dir: Path, name: str, prog
                 writer.add_histogram(param_name.replace(".", "/"), param.detach(), step)
             if (val_acc, -val_loss) > (best["val_accuracy"], -best["val_loss"]):
                 best = {"val_accuracy": val_acc, "val_loss": val_loss, "step": step}
-                _save_atomically({"model": model.state_dict(), "config": run.as_dict(), **best},
-                                 run_dir / "checkpoint.pt")
+                checkpoint = {"model": model.state_dict(), "config": run.as_dict(), **best}
+                write_atomically(run_dir / "checkpoint.pt", functools.partial(torch.save, checkpoint), overwrite=True,
+                                 binary=True)
     bar.close()
     wall = time.monotonic() - started
     model.load_state_dict(torch.load(run_dir / "checkpoint.pt", weights_only=True)["model"])
@@ -198,10 +194,9 @@ def train_run(run: RunConfig, prepared: Prepared, run_dir: Path, name: str, prog
                        run.steps / wall if wall > 0 else math.inf)
     writer.add_hparams(_hparams(run), result.metrics(), run_name=".")
     writer.close()
-    tmp = run_dir / ".result.json.tmp"
     sizes = {name: len(prepared.part(name)) for name in ("train", "val", "test")}
-    tmp.write_text(json.dumps({"result": asdict(result), "config": run.as_dict(), "samples": sizes}, indent=2) + "\n")
-    os.replace(tmp, run_dir / "result.json")
+    write_text_atomically(run_dir / "result.json", json.dumps({"result": asdict(result), "config": run.as_dict(),
+                                                              "samples": sizes}, indent=2) + "\n", overwrite=True)
     return result
 
 
