@@ -15,8 +15,6 @@ import torch
 
 from magna_uav.nai.inputs import PAD_FACTOR, input_names
 
-AUGMENTATIONS = ("none", "yaw")
-
 
 class YawAugmenter:
     """Turns raw (not normalised) input vectors and labels by one random yaw per sample."""

@@ -28,30 +28,29 @@ step, so the steps can be rebuilt where no CSV exists (a real flight's bag, a lo
 - role_end: the last step of each role, i.e. the last message of each `role_number`; the recorder
   writes the role's outcome on that same row, so `role_end` equals the CSV's (`outcome != ""`).
 
-Reading needs only rosbags (pure Python: `AnyReader` takes the message definitions from the bag,
-so magna_msgs need not be built) and magna_uav; the markers' geometry comes from magna_uav.ros_data,
-which imports the ROS message packages (geometry_msgs, visualization_msgs: no rospy, no master).
+The bag is read by `magna_common.simulation_bag` (rosbags, pure Python: the message definitions
+come from the bag, so magna_msgs need not be built); the markers' geometry comes from
+magna_uav.ros_data, which imports the ROS message packages (geometry_msgs, visualization_msgs: no
+rospy, no master).
 Depth images are not bagged: `depth_frames` stays None.
 """
 from __future__ import annotations
 
 import math
-import re
 from collections import defaultdict
 from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
 
+from magna_common import ros_names
+from magna_common.simulation_bag import BagError, read_simulation_bag
+from magna_common.storage_tree import BAG_FILE, MISSION_FILE
 from magna_uav.config import ConfigError, configs_from_mission_file
 from magna_uav.recorder import DEFAULT_OBSTACLES
 from magna_uav.world_view import AgentState, WorldView
 from mlr.steps import PicklerError, UavSteps
 
-BAG_NAME = "simulation.bag"
-MARKERS_TOPIC = "/magna/world/markers"
-_NAVIGATION = re.compile(r"/magna/uav_(\d+)/navigation")
-_UAL = re.compile(r"/uav_(\d+)/ual/(pose|velocity)")
 _USE_CSV = "use the CSVs (source csv)"
 
 
@@ -83,17 +82,12 @@ class _Series:
         return out
 
 
-def _stamp_ns(header, log_time: int) -> int:
-    ns = int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
-    return ns if ns > 0 else int(log_time)  # an unstamped message: when it was heard, as ros_data does
-
-
 def _xyz(v) -> tuple[float, float, float]:
     return (float(v.x), float(v.y), float(v.z))
 
 
 def _safety_radii(sim_dir: Path, ids) -> dict[int, float]:
-    mission = sim_dir / "mission.json"
+    mission = sim_dir / MISSION_FILE
     try:
         radii = {c.id: float(c.safety_radius) for c in configs_from_mission_file(mission)}
     except ConfigError as err:
@@ -112,7 +106,7 @@ def steps_from_bag(sim_dir: str | Path, max_speeds: Mapping[int, float],
     A UAV without navigation messages gets no steps; a bag without any raises PicklerError.
     """
     sim_dir = Path(sim_dir)
-    bag = sim_dir / BAG_NAME
+    bag = sim_dir / BAG_FILE
     if not bag.is_file():
         raise PicklerError(f"{bag}: no such bag (the simulation ran with --no-bag?): {_USE_CSV}")
     ids = sorted(int(i) for i in max_speeds)
@@ -121,8 +115,8 @@ def steps_from_bag(sim_dir: str | Path, max_speeds: Mapping[int, float],
         raise PicklerError(f"{bag}: no safety radius for UAV {missing[0]}")
     navigation, poses, velocities, markers = _read(bag)
     if not navigation:
-        raise PicklerError(f"{bag}: no /magna/uav_<id>/navigation messages: recorded before navigation steps "
-                           f"were bagged: {_USE_CSV}")
+        raise PicklerError(f"{bag}: no {ros_names.manager('<id>', 'navigation')} messages: recorded before "
+                           f"navigation steps were bagged: {_USE_CSV}")
     strangers = sorted(set(navigation) - set(ids))
     if strangers:
         raise PicklerError(f"{bag}: UAV {strangers[0]} flew but is not in the simulation's mission.json "
@@ -132,37 +126,24 @@ def steps_from_bag(sim_dir: str | Path, max_speeds: Mapping[int, float],
 
 
 def _read(bag: Path):
-    from rosbags.highlevel import AnyReader  # the optional dependency, only when bags are read
-
-    navigation: dict[int, dict[int, tuple]] = defaultdict(dict)  # UAV -> row -> (stamp, message)
-    poses: dict[int, _Series] = defaultdict(_Series)
-    velocities: dict[int, _Series] = defaultdict(_Series)
-    markers: list[tuple[int, object]] = []
     try:
-        with AnyReader([bag]) as reader:
-            wanted = [c for c in reader.connections
-                      if _NAVIGATION.fullmatch(c.topic) or _UAL.fullmatch(c.topic) or c.topic == MARKERS_TOPIC]
-            for connection, log_time, raw in reader.messages(connections=wanted):
-                msg = reader.deserialize(raw, connection.msgtype)
-                if connection.topic == MARKERS_TOPIC:
-                    markers.append((int(log_time), msg))
-                elif match := _NAVIGATION.fullmatch(connection.topic):
-                    # keyed by row: a replayed step is the same row (two steps may share a stamp)
-                    navigation[int(match.group(1))][int(msg.row)] = (_stamp_ns(msg.header, log_time), msg)
-                else:
-                    match = _UAL.fullmatch(connection.topic)
-                    uav, kind = int(match.group(1)), match.group(2)
-                    if kind == "pose":
-                        poses[uav].add(_stamp_ns(msg.header, log_time), _xyz(msg.pose.position))
-                    else:
-                        velocities[uav].add(_stamp_ns(msg.header, log_time), _xyz(msg.twist.linear))
-    except Exception as err:  # rosbags raises its own error types per format; all mean "cannot read it"
-        if isinstance(err, PicklerError):
-            raise
-        raise PicklerError(f"{bag}: cannot read the bag: {err}") from None
+        read = read_simulation_bag(bag, ("navigation", "pose", "velocity", "markers"))
+    except BagError as err:
+        raise PicklerError(f"{bag}: cannot read the bag: {err.reason}") from None
+    navigation: dict[int, dict[int, tuple]] = defaultdict(dict)  # UAV -> row -> (stamp, message)
+    for step in read.of("navigation"):
+        # keyed by row: a replayed step is the same row (two steps may share a stamp)
+        navigation[step.owner][int(step.msg.row)] = (step.stamp, step.msg)
+    poses: dict[int, _Series] = defaultdict(_Series)
+    for pose in read.of("pose"):
+        poses[pose.owner].add(pose.stamp, _xyz(pose.msg.pose.position))
+    velocities: dict[int, _Series] = defaultdict(_Series)
+    for velocity in read.of("velocity"):
+        velocities[velocity.owner].add(velocity.stamp, _xyz(velocity.msg.twist.linear))
     for series in (*poses.values(), *velocities.values()):
         series.freeze()
-    markers.sort(key=lambda item: item[0])
+    # the markers count from when the bag got them (a MarkerArray has no stamp of its own)
+    markers = sorted(((m.log_time, m.msg) for m in read.of("markers")), key=lambda item: item[0])
     ordered = {uav: [steps[row] for row in sorted(steps)] for uav, steps in navigation.items()}
     return ordered, poses, velocities, markers
 
@@ -231,4 +212,4 @@ def _ranked_obstacles(stamps: np.ndarray, position: np.ndarray, safety_radius: f
     return out_pos, out_gap
 
 
-__all__ = ["BAG_NAME", "steps_from_bag"]
+__all__ = ["steps_from_bag"]

@@ -4,7 +4,8 @@ Each product is stored under `<data_root>/mlr/cache/` in a file named by a hash 
 depends on:
 - pickled samples: the selection, the teacher, the source, every file read (path, size and
   modification time of each simulation's CSVs or bag, result.json, mission.json), and the
-  source code that turns files into vectors (pickler, bags, steps, magna_uav.nai.inputs);
+  source code that turns files into vectors (pickler, bags, steps, magna_common.simulation_bag,
+  magna_uav.nai.inputs);
 - prepared data: the pickled samples' key, the split and its seed, and the preprocessor's code.
 Files are written under a temporary name and renamed, so an interrupted run leaves no half file.
 """
@@ -12,15 +13,17 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 from collections.abc import Callable, Iterable
 from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
 
+from magna_common import simulation_bag
+from magna_common.files import write_atomically
+from magna_common.storage_tree import BAG_FILE, MISSION_FILE, RESULT_FILE, WORLD_FILE
 from mlr import pickler, preprocess
-from mlr.pickler import Samples, Selection, Simulation, Teacher
+from mlr.pickler import Samples, Selection, Simulation, Source, Teacher
 from mlr.preprocess import Prepared
 
 _MLR = Path(__file__).resolve().parent
@@ -31,24 +34,24 @@ CODE_FILES = {"pickled": ("pickler.py", "steps.py", "bags.py"), "prepared": ("pr
 def _code_hash(kind: str) -> str:
     from magna_uav.nai import inputs
 
-    files = [_MLR / name for name in CODE_FILES[kind]] + ([Path(inputs.__file__)] if kind == "pickled" else [])
+    readers = [Path(inputs.__file__), Path(simulation_bag.__file__)] if kind == "pickled" else []
+    files = [_MLR / name for name in CODE_FILES[kind]] + readers
     digest = hashlib.sha256()
     for path in files:
         digest.update(path.read_bytes() if path.is_file() else b"")
     return digest.hexdigest()
 
 
-def _files_of(sim: Simulation, source: str) -> list[Path]:
-    names = ["result.json", "mission.json", "world.json"]
-    found = [sim.directory / n for n in names]
+def _files_of(sim: Simulation, source: Source) -> list[Path]:
+    found = [sim.directory / n for n in (RESULT_FILE, MISSION_FILE, WORLD_FILE)]
     if source == "bag":
-        found.append(sim.directory / "simulation.bag")
+        found.append(sim.directory / BAG_FILE)
     else:
         found += sorted(sim.directory.glob("uav_*.csv")) + sorted(sim.directory.glob("uav_*_depth.npz"))
     return found
 
 
-def fingerprint(sims: Iterable[Simulation], source: str) -> list:
+def fingerprint(sims: Iterable[Simulation], source: Source) -> list:
     out = []
     for sim in sims:
         for path in _files_of(sim, source):
@@ -62,7 +65,7 @@ def _key(payload: dict) -> str:
     return hashlib.sha256(json.dumps(payload, sort_keys=True, default=str).encode()).hexdigest()[:20]
 
 
-def pickled_key(selection: Selection, teacher: Teacher, source: str, sims: list[Simulation]) -> str:
+def pickled_key(selection: Selection, teacher: Teacher, source: Source, sims: list[Simulation]) -> str:
     return _key({"selection": asdict(selection) | {"data_root": str(selection.data_root)},
                  "teacher": asdict(teacher), "source": source, "files": fingerprint(sims, source),
                  "code": _code_hash("pickled")})
@@ -76,23 +79,12 @@ def cache_dir(data_root: Path) -> Path:
     return Path(data_root).expanduser() / "mlr" / "cache"
 
 
-def _write_npz(path: Path, write: Callable) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        with open(tmp, "wb") as out:
-            write(out)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
-
-
 def save_samples(samples: Samples, path: Path) -> None:
     arrays = {"x": samples.x, "y": samples.y, "max_speed": samples.max_speed, "origin": samples.origin,
               "step": samples.step, "sources": np.asarray(samples.sources, dtype=str)}
     if samples.images is not None:
         arrays["images"] = samples.images
-    _write_npz(path, lambda out: np.savez(out, **arrays))
+    write_atomically(path, lambda out: np.savez(out, **arrays), overwrite=True, binary=True)
 
 
 def load_samples(path: Path) -> Samples:
@@ -101,7 +93,7 @@ def load_samples(path: Path) -> Samples:
                        [str(s) for s in data["sources"]], data["images"] if "images" in data else None)
 
 
-def cached_samples(selection: Selection, teacher: Teacher, source: str, sims: list[Simulation],
+def cached_samples(selection: Selection, teacher: Teacher, source: Source, sims: list[Simulation],
                    progress: Callable = lambda it: it, force: bool = False) -> tuple[Samples, str, bool]:
     """(samples, their key, whether they came from the cache)."""
     key = pickled_key(selection, teacher, source, sims)
@@ -119,5 +111,5 @@ def cached_prepared(samples: Samples, key: str, data_root: Path, split, seed: in
     if path.is_file() and not force:
         return preprocess.load_prepared(path), True
     prepared = preprocess.prepare(samples, tuple(split), seed)
-    _write_npz(path, lambda out: preprocess.save_prepared(prepared, out))
+    write_atomically(path, lambda out: preprocess.save_prepared(prepared, out), overwrite=True, binary=True)
     return prepared, False

@@ -15,18 +15,30 @@ import math
 import re
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
+from typing import Literal, NoReturn, get_args
 
-from mlr.pickler import Selection, Teacher
+from magna_common.storage_tree import StorageError, check_component
+from mlr.pickler import SOURCES, Selection, Source, Teacher
+
+# The words a config may give for each key with a fixed set of values; the files and RunConfig hold the words.
+Role = Literal["path", "agent_ad", "agent_ap"]  # the roles the NAI has inputs for (magna_uav.nai.inputs)
+Algorithm = Literal["orca3d", "simple", "neural_network"]
+Model = Literal["mlp", "cnn"]
+Optimizer = Literal["adam", "sgd"]
+Activation = Literal["relu", "tanh"]
+Padding = Literal["same", "valid"]
+Pooling = Literal["max", "avg", "none"]
+Schedule = Literal["constant", "cosine"]
+Loss = Literal["mse", "l1", "norm"]
+Augmentation = Literal["none", "yaw"]
 
 ALGORITHM_ALIASES = {"orca3": "orca3d"}
-MODELS = ("mlp", "cnn")
-OPTIMIZERS = ("adam", "sgd")
-ACTIVATIONS = ("relu", "tanh")
-PADDINGS = ("same", "valid")
-POOLINGS = ("max", "avg", "none")
-SCHEDULES = ("constant", "cosine")
-LOSSES = ("mse", "l1", "norm")
-AUGMENTATIONS = ("none", "yaw")
+# key -> the words it takes, in the order error messages list them
+CHOICES: dict[str, tuple[str, ...]] = {
+    "source": SOURCES, "role": get_args(Role), "algorithm": get_args(Algorithm), "model": get_args(Model),
+    "optimizer": get_args(Optimizer), "activation": get_args(Activation), "padding": get_args(Padding),
+    "pooling": get_args(Pooling), "lr_schedule": get_args(Schedule), "loss": get_args(Loss),
+    "augment": get_args(Augmentation)}
 LIST_KEYS = frozenset({"datasets", "hidden_layers", "image_size", "split"})
 REQUIRED = ("world", "subworld", "mission", "submission")
 
@@ -47,10 +59,10 @@ class RunConfig:
     name: str = "default"
     datasets: tuple[int, ...] = (1,)
     data_root: str = "~/magna_data"
-    source: str = "csv"  # csv: the recorder CSVs; bag: rebuilt from simulation.bag
+    source: Source = "csv"  # csv: the recorder CSVs; bag: rebuilt from simulation.bag
     # the teacher and the input vector
-    role: str = "path"
-    algorithm: str = "orca3d"
+    role: Role = "path"
+    algorithm: Algorithm = "orca3d"
     n_neighbors: int = 1
     n_obstacles: int = 0
     neighbor_dist: float = 6.0
@@ -59,21 +71,21 @@ class RunConfig:
     split: tuple[float, float, float] = (0.7, 0.2, 0.1)
     seed: int = 0
     # the network
-    model: str = "mlp"
+    model: Model = "mlp"
     hidden_layers: tuple[int, ...] = (20, 30, 20)
-    activation: str = "relu"
+    activation: Activation = "relu"
     image_size: tuple[int, int] = (32, 32)
     conv_depth: int = 2  # convolutional layers
     conv_channels: int = 8  # filters of the first layer; each further layer doubles them
     patch_size: int = 5
-    padding: str = "same"
-    pooling: str = "max"
+    padding: Padding = "same"
+    pooling: Pooling = "max"
     # training
-    optimizer: str = "adam"
+    optimizer: Optimizer = "adam"
     learning_rate: float = 1e-3
-    lr_schedule: str = "constant"  # cosine: decays to 0 over the steps (finer final fit)
-    loss: str = "mse"  # mse; l1; norm: mean Euclidean error of the (normalised) velocity, like accuracy's test
-    augment: str = "none"  # yaw: each batch turned by random yaws about the vertical (mlr.augment)
+    lr_schedule: Schedule = "constant"  # cosine: decays to 0 over the steps (finer final fit)
+    loss: Loss = "mse"  # mse; l1; norm: mean Euclidean error of the (normalised) velocity, like accuracy's test
+    augment: Augmentation = "none"  # yaw: each batch turned by random yaws about the vertical (mlr.augment)
     batch_size: int = 500
     steps: int = 20000
     eval_every: int = 1000
@@ -153,7 +165,7 @@ def _check(path: Path, key: str, value):
     """The value as RunConfig holds it; ConfigError names the file, the key and what to give."""
     where = f"{path}: {key}"
 
-    def fail(what: str):
+    def fail(what: str) -> NoReturn:
         raise ConfigError(f"{where} is {value!r}: give {what}")
 
     def whole(v, low=0):
@@ -174,37 +186,23 @@ def _check(path: Path, key: str, value):
             fail(f"one of {', '.join(choices)}")
         return v
 
-    if key in ("world", "subworld", "mission", "submission", "name", "data_root"):
+    if key in ("world", "subworld", "mission", "submission", "name"):
+        try:  # each names one folder of the storage tree
+            return check_component(word(value), key)
+        except StorageError:
+            fail("a plain name without '/' (one folder of the storage tree, as given to magna run)")
+    if key == "data_root":
         return word(value)
-    if key == "source":
-        return word(value, ("csv", "bag"))
-    if key == "role":
-        return word(value, ("path", "agent_ad", "agent_ap"))
     if key == "algorithm":
         value = ALGORITHM_ALIASES.get(value, value)
-        return word(value, ("orca3d", "simple", "neural_network"))
+    if key in CHOICES:
+        return word(value, CHOICES[key])
     if key in ("n_neighbors", "n_obstacles", "fvi", "seed"):
         return whole(value)
     if key in ("batch_size", "steps", "eval_every", "threads", "conv_depth", "conv_channels", "patch_size"):
         return whole(value, 1)
     if key in ("neighbor_dist", "learning_rate"):
         return positive(value)
-    if key == "model":
-        return word(value, MODELS)
-    if key == "optimizer":
-        return word(value, OPTIMIZERS)
-    if key == "activation":
-        return word(value, ACTIVATIONS)
-    if key == "padding":
-        return word(value, PADDINGS)
-    if key == "pooling":
-        return word(value, POOLINGS)
-    if key == "lr_schedule":
-        return word(value, SCHEDULES)
-    if key == "loss":
-        return word(value, LOSSES)
-    if key == "augment":
-        return word(value, AUGMENTATIONS)
     if key == "datasets":
         if not isinstance(value, list) or not value:
             fail("a list of dataset numbers, e.g. [1, 2]")

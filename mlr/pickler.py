@@ -23,17 +23,21 @@ import math
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Literal, get_args
 
 import numpy as np
 
 from magna_common.airframes import AirframeError, load_airframe
+from magna_common.records import RecordError, SimulationResult
+from magna_common.storage_tree import MISSION_FILE, RESULT_FILE, WORLD_FILE, StorageKey
 from magna_uav.nai.inputs import ROLE_BLOCKS, assemble_inputs, input_names
 from magna_uav.nai.neural import prepare_depth
 from magna_uav.recorder import depth_path, read_csv, read_depth
 from mlr.steps import PicklerError, UavSteps
 
 XYZ = ("x", "y", "z")
-SOURCES = ("csv", "bag")
+Source = Literal["csv", "bag"]  # the recorder CSVs, or simulation.bag (mlr.bags)
+SOURCES: tuple[str, ...] = get_args(Source)
 
 
 @dataclass(frozen=True)
@@ -49,12 +53,15 @@ class Selection:
     datasets: tuple[int, ...] = (1,)
 
     @property
+    def key(self) -> StorageKey:
+        return StorageKey(self.world, self.subworld, self.mission, self.submission, self.name)
+
+    @property
     def series_dir(self) -> Path:
-        return (Path(self.data_root).expanduser() / "Simulations" / self.world / self.subworld / self.mission
-                / self.submission / self.name)
+        return self.key.base_dir(self.data_root)
 
     def dataset_dirs(self) -> list[Path]:
-        return [self.series_dir / f"dataset_{n}" for n in self.datasets]
+        return [self.key.dataset_dir(self.data_root, n) for n in self.datasets]
 
 
 @dataclass(frozen=True)
@@ -137,24 +144,24 @@ def find_simulations(selection: Selection) -> tuple[list[Simulation], list[str]]
             if reason:
                 skipped.append(f"{sim}: {reason}")
             else:
-                kept.append(Simulation(sim, _uav_models(sim / "mission.json")))
+                kept.append(Simulation(sim, _uav_models(sim / MISSION_FILE)))
     return kept, skipped
 
 
 def _unusable(sim: Path) -> str:
-    if not (sim / "world.json").is_file():
-        return "no world.json (the resolved world)"
-    result_path = sim / "result.json"
+    if not (sim / WORLD_FILE).is_file():
+        return f"no {WORLD_FILE} (the resolved world)"
+    result_path = sim / RESULT_FILE
     if not result_path.is_file():
-        return "no result.json"
+        return f"no {RESULT_FILE}"
     try:
-        result = json.loads(result_path.read_text())
-    except (OSError, json.JSONDecodeError) as err:
-        return f"result.json unreadable ({err})"
-    if result.get("success") is not True:
-        return f"not a success ({result.get('outcome', '?')}: {result.get('message', '')})"
-    if not (sim / "mission.json").is_file():
-        return "no mission.json (the UAV models come from it)"
+        result = SimulationResult.read(result_path)
+    except RecordError as err:
+        return f"{RESULT_FILE} unreadable ({err})"
+    if not result.success:
+        return f"not a success ({result.outcome or '?'}: {result.message})"
+    if not (sim / MISSION_FILE).is_file():
+        return f"no {MISSION_FILE} (the UAV models come from it)"
     return ""
 
 
@@ -308,11 +315,11 @@ def samples(steps: UavSteps, teacher: Teacher) -> Samples:
                    None if teacher.image is None else np.asarray(images, np.float32).reshape(k, *teacher.image))
 
 
-def simulation_steps(sim: Simulation, source: str = "csv") -> list[UavSteps]:
+def simulation_steps(sim: Simulation, source: Source = "csv") -> list[UavSteps]:
     """Every UAV's steps of one simulation, read from its CSVs or its bag."""
     if source not in SOURCES:
         raise PicklerError(f"source is {source!r}: give csv (the recorder CSVs) or bag (simulation.bag)")
-    speeds = {uav: max_speed_of(model, sim.directory / "mission.json") for uav, model in sim.uav_models.items()}
+    speeds = {uav: max_speed_of(model, sim.directory / MISSION_FILE) for uav, model in sim.uav_models.items()}
     if source == "bag":
         from mlr.bags import steps_from_bag  # rosbags, only when asked for
 
@@ -326,7 +333,7 @@ def simulation_steps(sim: Simulation, source: str = "csv") -> list[UavSteps]:
     return out
 
 
-def pickle_simulations(sims: Iterable[Simulation], teacher: Teacher, source: str = "csv",
+def pickle_simulations(sims: Iterable[Simulation], teacher: Teacher, source: Source = "csv",
                        progress: Callable[[Iterable], Iterable] = lambda it: it) -> Samples:
     """Samples of every UAV of every simulation, in order."""
     parts = [samples(steps, teacher) for sim in progress(list(sims)) for steps in simulation_steps(sim, source)]

@@ -54,6 +54,10 @@ def test_command_line_overrides_win(tmp_path):
     ({"learning_rate": [0.1, -1]}, r"learning_rate is -1: give a positive number"),
     ({"role": "land"}, r"role is 'land': give one of path, agent_ad, agent_ap"),
     ({"model": "rnn"}, r"model is 'rnn': give one of mlp, cnn"),
+    ({"source": "rosbag"}, r"source is 'rosbag': give one of csv, bag"),
+    ({"algorithm": "orca"}, r"algorithm is 'orca': give one of orca3d, simple, neural_network"),
+    ({"loss": "huber"}, r"loss is 'huber': give one of mse, l1, norm"),
+    ({"subworld": "Empty/4"}, r"subworld is 'Empty/4': give a plain name without '/'"),
     ({"split": [0.5, 0.2, 0.1]}, r"split is .*: give \[train, validation, test\] shares that add up to 1"),
     ({"image_size": [8]}, r"image_size is \[8\]: give \[height, width\]"),
     ({"model": "cnn", "padding": "valid", "image_size": [8, 8], "conv_depth": 3, "patch_size": 5},
@@ -89,3 +93,12 @@ def test_the_shipped_thesis_configs_load():
     architectures = [(10, 10), (30, 30), (10, 20, 10), (20, 30, 20), (128, 128, 128)]
     assert [r.hidden_layers for r in thesis.runs][::2] == architectures
     assert [r.augment for r in thesis.runs][:2] == ["none", "yaw"]
+
+
+def test_the_roles_a_config_may_give_are_those_the_nai_has_inputs_for():
+    from typing import get_args
+
+    from magna_uav.nai.inputs import ROLE_BLOCKS
+    from mlr.config import Role
+
+    assert get_args(Role) == tuple(ROLE_BLOCKS)
