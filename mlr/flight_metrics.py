@@ -8,11 +8,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from magna_common.files import write_atomically, write_text_atomically
+from magna_common.records import INTERRUPTED, NOT_RUN_TO_AN_OUTCOME, RecordError, SimulationResult, SummaryRow
+from magna_common.storage_tree import RESULT_FILE, SUMMARY_FILE, simulation_dir
 from mlr.nn_mission import FlyError
 
 TARGET_RATIO = 0.95  # the project's target: missions flown by the network collision-free at >= 95% of ORCA's rate
 # Simulations that did not run to a mission outcome say nothing about the algorithm: left out.
-NOT_FLOWN = ("interrupted", "crashed", "start_failed", "supervisor_failed")
+NOT_FLOWN = (INTERRUPTED, *NOT_RUN_TO_AN_OUTCOME)
 TIME_TO_GOAL = ("per UAV and simulation: the time of the UAV's last `path` control step minus its first, "
                 "counted when every path role it flew ended 'succeeded' (the recorder's outcome column)")
 
@@ -79,26 +81,33 @@ def path_time_to_goal(rows: list[dict]) -> tuple[bool, float | None]:
 
 def read_batch(dataset_dir: Path, label: str) -> BatchMetrics:
     """The metrics of a dataset: summary.csv, each simulation's result.json and uav_*.csv."""
-    from magna_master import storage
     from magna_uav.recorder import read_csv
 
     dataset_dir = Path(dataset_dir)
-    rows = storage.read_summary(dataset_dir)
+    try:
+        rows = SummaryRow.read(dataset_dir / SUMMARY_FILE)
+    except RecordError as err:
+        if not err.missing:
+            raise FlyError(str(err)) from None
+        rows = []
     if not rows:
-        raise FlyError(f"{dataset_dir}: no {storage.SUMMARY_FILE} with simulations; run the batch first "
+        raise FlyError(f"{dataset_dir}: no {SUMMARY_FILE} with simulations; run the batch first "
                        f"(without --skip-orca for the ORCA-3D one)")
     metrics = BatchMetrics(label, dataset_dir)
     for row in rows:
-        sim_dir = storage.simulation_dir(dataset_dir, int(row["id"]))
-        result = storage.read_result(sim_dir / storage.RESULT_FILE) or {}
-        if row.get("outcome") in NOT_FLOWN or result.get("termination") in NOT_FLOWN:
+        sim_dir = simulation_dir(dataset_dir, row.id)
+        try:
+            result: SimulationResult | None = SimulationResult.read(sim_dir / RESULT_FILE)
+        except RecordError:
+            result = None  # a simulation that never finished writing it: the summary row tells
+        if row.outcome in NOT_FLOWN or (result is not None and result.termination in NOT_FLOWN):
             metrics.left_out += 1
             continue
         metrics.simulations += 1
-        metrics.successes += row.get("success") == "True"
-        metrics.collision_free += int(row.get("collisions") or 0) == 0
-        if result.get("seed") is not None:
-            metrics.seeds.append(int(result["seed"]))
+        metrics.successes += row.success
+        metrics.collision_free += row.collisions == 0
+        if result is not None and result.seed is not None:
+            metrics.seeds.append(result.seed)
         for csv_path in sorted(sim_dir.glob("uav_*.csv")):
             try:
                 _, uav_rows = read_csv(csv_path)

@@ -15,7 +15,8 @@ from pathlib import Path
 
 import pytest
 
-from magna_master import storage
+from magna_common.records import SimulationResult, SummaryRow
+from magna_common.storage_tree import RESULT_FILE, SUMMARY_FILE
 from magna_uav.nai.inputs import DEFAULT_NEIGHBOR_DIST, input_names, output_names
 from magna_uav.recorder import columns, read_csv
 from mlr import flight_metrics, nn_mission
@@ -204,11 +205,12 @@ def add_simulation(dataset: Path, m: int, success: bool, collisions: int, uavs: 
     sim = dataset / f"simulation_{m}"
     sim.mkdir(parents=True)
     outcome = termination if termination != "ground_station" else ("completed" if success else "failed")
-    result = {"id": m, "seed": m if seed is None else seed, "success": success, "outcome": outcome,
-              "termination": termination, "message": "", "sim_duration": 60.0, "wall_time": 9.0,
-              "collisions": collisions}
-    storage.write_result(sim, result)
-    storage.update_summary(dataset, result)
+    result = SimulationResult(id=m, seed=m if seed is None else seed, success=success, outcome=outcome,
+                              termination=termination, message="", sim_duration=60.0, wall_time=9.0,
+                              collisions=collisions)
+    result.write(sim / RESULT_FILE)
+    summary = dataset / SUMMARY_FILE
+    SummaryRow.write(summary, [*(SummaryRow.read(summary) if summary.exists() else []), SummaryRow.of(result)])
     for uav_id, paths in uavs.items():
         write_uav_csv(sim / f"uav_{uav_id}.csv", uav_id, 3 - uav_id, flight(paths))
 
