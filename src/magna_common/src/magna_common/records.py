@@ -386,7 +386,7 @@ def _records_of(cls: type[R], what: str) -> Callable[[Any], tuple]:
 @dataclass(frozen=True)
 class RecordedPoseSet(_Record):
     type: str = _key(default="")
-    path: str = _key(default="")
+    path: str | None = _key(read=_optional(_str))  # the zigzag path's name; None for other pose sets
     frames: tuple[str, ...] = _key(read=_strs, default=())
     cells: tuple[tuple[float, ...], ...] | None = _key(read=_optional(_vectors))
     positions: tuple[tuple[float, ...], ...] = _key(read=_vectors, default=())
