@@ -34,6 +34,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from magna_common import ros_names
+from magna_common.simulation_bag import read_simulation_bag
+from magna_common.storage_tree import BAG_FILE
 from magna_uav.recorder import LEGACY_MISSING, columns, read_csv
 from mlr.bags import steps_from_bag
 from mlr.pickler import PicklerError, Teacher, runs, samples, steps_from_csv
@@ -76,24 +79,24 @@ class BagMaker:
             header=self.header(ns), row=row, role_number=role_number, role=role, algorithm=algorithm,
             goal=self.Point(*goal), goal_velocity=self.Vector3(*goal_vel), goal_distance=goal_dist,
             selected_velocity=self.Vector3(*sel), feasible=-1)
-        self.items.append((f"/magna/uav_{uav}/navigation", "magna_msgs/msg/NavigationStep", log_ns or ns, msg))
+        self.items.append((ros_names.manager(uav, "navigation"), "magna_msgs/msg/NavigationStep", log_ns or ns, msg))
 
     def pose(self, uav, ns, xyz, stamped=True):
         t = self.store.types
         pose = t["geometry_msgs/msg/Pose"](position=self.Point(*xyz),
                                            orientation=t["geometry_msgs/msg/Quaternion"](0.0, 0.0, 0.0, 1.0))
         msg = t["geometry_msgs/msg/PoseStamped"](header=self.header(ns if stamped else 0), pose=pose)
-        self.items.append((f"/uav_{uav}/ual/pose", "geometry_msgs/msg/PoseStamped", ns, msg))
+        self.items.append((ros_names.ual(uav, "pose"), "geometry_msgs/msg/PoseStamped", ns, msg))
 
     def velocity(self, uav, ns, xyz):
         t = self.store.types
         twist = t["geometry_msgs/msg/Twist"](linear=self.Vector3(*xyz), angular=self.Vector3(0.0, 0.0, 0.0))
         msg = t["geometry_msgs/msg/TwistStamped"](header=self.header(ns), twist=twist)
-        self.items.append((f"/uav_{uav}/ual/velocity", "geometry_msgs/msg/TwistStamped", ns, msg))
+        self.items.append((ros_names.ual(uav, "velocity"), "geometry_msgs/msg/TwistStamped", ns, msg))
 
     def markers(self, ns, markers):
         msg = self.store.types["visualization_msgs/msg/MarkerArray"](markers=markers)
-        self.items.append(("/magna/world/markers", "visualization_msgs/msg/MarkerArray", ns, msg))
+        self.items.append((ros_names.WORLD_MARKERS, "visualization_msgs/msg/MarkerArray", ns, msg))
 
     def marker(self, marker_id, kind, action, xyz=(0.0, 0.0, 0.0), scale=(1.0, 1.0, 1.0), text="", ns="obstacles"):
         t = self.store.types
@@ -214,15 +217,8 @@ def csv_rows(run, uav: int) -> tuple[list[str], list[dict]]:
 
 
 def bag_navigation(run) -> dict[int, list]:
-    from rosbags.highlevel import AnyReader
-
-    out: dict[int, list] = {}
-    with AnyReader([run.sim_dir / "simulation.bag"]) as reader:
-        topics = {f"/magna/uav_{uav}/navigation": uav for uav in run.uav_ids}
-        connections = [c for c in reader.connections if c.topic in topics]
-        for connection, _, raw in reader.messages(connections=connections):
-            out.setdefault(topics[connection.topic], []).append(reader.deserialize(raw, connection.msgtype))
-    return out
+    steps = read_simulation_bag(run.sim_dir / BAG_FILE, ("navigation",)).by_owner("navigation")
+    return {uav: [step.msg for step in steps[uav]] for uav in run.uav_ids if uav in steps}
 
 
 def test_the_csvs_carry_the_goal_target_columns(recorded_run):
