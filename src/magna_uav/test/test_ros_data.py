@@ -11,6 +11,7 @@ from sensor_msgs.msg import BatteryState, Image
 from uav_abstraction_layer.msg import State
 from visualization_msgs.msg import Marker, MarkerArray
 
+from magna_common import ros_names as names
 from magna_uav.ros_data import ObstacleMarkers, WorldUpdater, depth_image, marker_obstacle, obstacles_from_markers
 from magna_uav.world_view import AgentState, WorldView
 from tests.support import CORPUS, wait_until
@@ -271,7 +272,7 @@ def test_every_agent_needs_a_safety_radius():
 @pytest.mark.ros
 def test_topics_fill_the_view(rospy_node):
     rospy = rospy_node
-    from magna_uav.ros_data import MARKERS_TOPIC, RosWorldData, topics
+    from magna_uav.ros_data import RosWorldData, topics
 
     own, other = 91, 92
     view = WorldView(own)
@@ -295,7 +296,7 @@ def test_topics_fill_the_view(rospy_node):
         publisher(topics(own)["depth"], Image).publish(
             Image(height=1, width=2, encoding="32FC1", step=8, data=struct.pack("<2f", 2.5, 7.0)))
         box = marker(Marker.CUBE, 41, scale=(2, 2, 2), position=(1, 0, 5), text="test91_box")
-        publisher(MARKERS_TOPIC, MarkerArray).publish(MarkerArray([Marker(action=Marker.DELETEALL), box]))
+        publisher(names.WORLD_MARKERS, MarkerArray).publish(MarkerArray([Marker(action=Marker.DELETEALL), box]))
 
         def filled():
             with data.lock:

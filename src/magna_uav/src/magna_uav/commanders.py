@@ -15,6 +15,7 @@ import rospy
 from geometry_msgs.msg import PoseStamped, TwistStamped
 from uav_abstraction_layer.srv import GoToWaypoint, Land, SetHome, TakeOff
 
+from magna_common import ros_names as names
 from magna_common.ros_errors import service_error_text
 
 FRAME = "map"
@@ -38,13 +39,12 @@ def pose_stamped(position: Sequence[float], yaw: float = 0.0, frame: str = FRAME
 class UalCommander:
     def __init__(self, uav_id: int, wait_for_services: float = 30.0):
         self.uav_id = int(uav_id)
-        ns = f"/uav_{self.uav_id}/ual/"
-        self._set_velocity = rospy.Publisher(ns + "set_velocity", TwistStamped, queue_size=1)
-        self._set_pose = rospy.Publisher(ns + "set_pose", PoseStamped, queue_size=1)
+        self._set_velocity = rospy.Publisher(names.ual(self.uav_id, "set_velocity"), TwistStamped, queue_size=1)
+        self._set_pose = rospy.Publisher(names.ual(self.uav_id, "set_pose"), PoseStamped, queue_size=1)
         services = {"take_off": TakeOff, "land": Land, "go_to_waypoint": GoToWaypoint, "set_home": SetHome}
         self._services = {}
         for name, kind in services.items():
-            full = ns + name
+            full = names.ual(self.uav_id, name)
             try:
                 rospy.wait_for_service(full, timeout=wait_for_services)
             except rospy.ROSException:

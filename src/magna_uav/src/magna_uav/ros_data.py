@@ -43,10 +43,10 @@ from sensor_msgs.msg import BatteryState, Image
 from uav_abstraction_layer.msg import State
 from visualization_msgs.msg import Marker, MarkerArray
 
+from magna_common import ros_names as names
 from magna_uav.shapes import Box, Capsule, Cylinder, Mesh, Sphere
 from magna_uav.world_view import AgentState, Obstacle, WorldView
 
-MARKERS_TOPIC = "/magna/world/markers"
 OBSTACLE_NS = "obstacles"
 MAP_FRAMES = ("map", "/map", "")  # markers without a frame are taken to be in map
 
@@ -57,10 +57,8 @@ _MARKER_TYPES = {getattr(Marker, n): n for n in (
 
 def topics(agent_id: int) -> dict[str, str]:
     """The topics heard for one UAV."""
-    base = f"/uav_{agent_id}"
-    return {"pose": f"{base}/ual/pose", "velocity": f"{base}/ual/velocity", "odom": f"{base}/ual/odom",
-            "state": f"{base}/ual/state", "battery": f"{base}/mavros/battery",
-            "depth": f"{base}/camera/depth/image_raw"}
+    return {**{name: names.ual(agent_id, name) for name in ("pose", "velocity", "odom", "state")},
+            "battery": names.battery(agent_id), "depth": names.depth_camera(agent_id, "image_raw")}
 
 
 # --- obstacle markers -------------------------------------------------------------------------------------------
@@ -327,7 +325,7 @@ class RosWorldData(WorldUpdater):
     """WorldUpdater wired to the topics; `close()` (or leaving a `with` block) unsubscribes."""
 
     def __init__(self, view: WorldView, agent_ids: list[int], safety_radii: dict[int, float], depth: bool = False,
-                 markers_topic: str = MARKERS_TOPIC):
+                 markers_topic: str = names.WORLD_MARKERS):
         import rospy  # here, so that the rest of the module loads without a ROS environment being up
 
         super().__init__(view, agent_ids, safety_radii)

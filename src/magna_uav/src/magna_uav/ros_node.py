@@ -9,6 +9,7 @@ preempts it (the UAV does one thing at a time).
 from __future__ import annotations
 
 import argparse
+import functools
 import time
 from pathlib import Path
 
@@ -131,18 +132,18 @@ class UavManagerNode:
         self._critical_seen = ""
         self._plan_changed_at = float("-inf")  # sim time of the UTM's latest plan change for this UAV
 
-        ns = names.manager(self.uav_id) + "/"
-        self.raw_path = rospy.Publisher(ns + "path/raw", PathMsg, queue_size=1, latch=True)
-        self.smoothed_path = rospy.Publisher(ns + "path/smoothed", PathMsg, queue_size=1, latch=True)
-        self.goal_pub = rospy.Publisher(ns + "goal", PoseStamped, queue_size=1, latch=True)
+        name = functools.partial(names.manager, self.uav_id)  # this manager's names: name("goal")
+        self.raw_path = rospy.Publisher(name("path/raw"), PathMsg, queue_size=1, latch=True)
+        self.smoothed_path = rospy.Publisher(name("path/smoothed"), PathMsg, queue_size=1, latch=True)
+        self.goal_pub = rospy.Publisher(name("goal"), PoseStamped, queue_size=1, latch=True)
         rospy.Subscriber(names.GS_CRITICAL_EVENT, String, self._on_critical_event, queue_size=10)
-        rospy.Subscriber(ns + "utm_new_flightplan", Float64, self._on_new_flightplan, queue_size=10)
-        self.services = [rospy.Service(ns + "algorithm_control", AlgorithmControl, self._on_algorithm_control),
-                         rospy.Service(ns + "die", Die, self._on_die)]
+        rospy.Subscriber(name("utm_new_flightplan"), Float64, self._on_new_flightplan, queue_size=10)
+        self.services = [rospy.Service(name("algorithm_control"), AlgorithmControl, self._on_algorithm_control),
+                         rospy.Service(name("die"), Die, self._on_die)]
         self.servers = {}
         for action, type_name in ACTION_TYPES.items():
             spec = getattr(magna_actions, type_name + "Action")
-            server = SimpleActionServer(ns + action, spec, execute_cb=self._executor(action, type_name),
+            server = SimpleActionServer(name(action), spec, execute_cb=self._executor(action, type_name),
                                         auto_start=False)
             self.servers[action] = server
         self.machine = self._build_machine()

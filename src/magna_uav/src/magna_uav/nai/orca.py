@@ -37,14 +37,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from magna_common import ros_names as names
 from magna_orca_cpp import reference
 from magna_orca_cpp.model import Agent, Params, Solution
 from magna_uav.nai.inputs import Neighbors, select_neighbors
 from magna_uav.world_view import WorldView
 
 logger = logging.getLogger("magna_uav.nai")
-
-SERVICE = "/magna/orca3d/compute_velocity"
 
 
 class ReferenceSolver:
@@ -110,5 +109,5 @@ class OrcaNavigator:
             self._warned = True
             logger.warning("ORCA-3D service %s is not available: UAV %d avoids with the numpy reference "
                            "(same answers, slower); start magna_orca_cpp orca3d_server for the fast path",
-                           SERVICE, view.own_id)
+                           names.ORCA_COMPUTE_VELOCITY, view.own_id)
         return OrcaResult(np.asarray(solution.velocity, dtype=float).reshape(3), bool(solution.feasible), neighbors)
