@@ -12,10 +12,9 @@ import threading
 import time
 from pathlib import Path
 
+from magna_common import ros_names as names
 from magna_sm.container import Container, ContainerEvent, ContainerStructure
 from magna_sm.draw import draw_structures
-
-DEFAULT_NAMESPACE = "/magna/sm"
 
 
 def structure_to_msg(structure: ContainerStructure, stamp=None):
@@ -46,7 +45,7 @@ def msg_to_structure(msg, initial_states=()) -> ContainerStructure:
 class IntrospectionServer:
     """Publishes one machine's structure and status; `start()` after building, `stop()` when done."""
 
-    def __init__(self, name: str, root: Container, namespace: str = DEFAULT_NAMESPACE, heartbeat: float = 1.0):
+    def __init__(self, name: str, root: Container, namespace: str = names.SM_ROOT, heartbeat: float = 1.0):
         self.root = root
         self.prefix = f"{namespace.rstrip('/')}/{name}"
         self.heartbeat = heartbeat
@@ -159,7 +158,7 @@ class MachineView:
         return draw_structures(self.structures(), output, self.active_paths(), title)
 
 
-def run_viewer(server: str, output: Path, namespace: str = DEFAULT_NAMESPACE, min_period: float = 0.5,
+def run_viewer(server: str, output: Path, namespace: str = names.SM_ROOT, min_period: float = 0.5,
                once: bool = False, timeout: float = 10.0, window: bool = False) -> int:
     """Subscribe to a server's topics and redraw `output` whenever the machine changes."""
     import rospy

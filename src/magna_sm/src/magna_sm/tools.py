@@ -73,7 +73,8 @@ def draw_main(argv: list[str] | None = None) -> int:
 def viewer_main(argv: list[str] | None = None) -> int:
     import rospy
 
-    from magna_sm.introspection import DEFAULT_NAMESPACE, run_viewer
+    from magna_common.ros_names import SM_ROOT
+    from magna_sm.introspection import run_viewer
 
     parser = argparse.ArgumentParser(
         prog="rosrun magna_sm viewer",
@@ -84,7 +85,7 @@ def viewer_main(argv: list[str] | None = None) -> int:
     add_output(parser, default=Path("state_machine.png"), metavar="FILE",
                help="image file kept up to date (default: %(default)s)")
     add_force(parser, help="replace FILE if it exists when the viewer starts")
-    parser.add_argument("--namespace", default=DEFAULT_NAMESPACE, help="topic namespace (default: %(default)s)")
+    parser.add_argument("--namespace", default=SM_ROOT, help="topic namespace (default: %(default)s)")
     parser.add_argument("--period", type=float, default=0.5, help="least seconds between redraws")
     parser.add_argument("--once", action="store_true", help="draw once the machine is seen, then exit")
     parser.add_argument("--timeout", type=float, default=10.0, help="with --once: seconds to wait for the machine")
