@@ -8,6 +8,7 @@ import argparse
 import math
 import sys
 
+from magna_common import ros_names as names
 from magna_common.ros_errors import service_error_text
 
 # How rospy's client wraps a server's refusal; the reason comes as a bytes literal under Python 3.
@@ -74,23 +75,23 @@ def run(args) -> None:
     from uav_abstraction_layer.msg import State
     from uav_abstraction_layer.srv import GoToWaypoint, Land, TakeOff
 
-    ns = f"/uav_{args.id}/ual/"
-    _wait_for_server(args.id, ns, ready=args.command != "state")
+    _wait_for_server(args.id, ready=args.command != "state")
     wait = not args.no_wait
     if args.command == "take_off":
-        _service(ns + "take_off", TakeOff)(height=args.height, blocking=wait)
+        _service(names.ual(args.id, "take_off"), TakeOff)(height=args.height, blocking=wait)
     elif args.command == "land":
-        _service(ns + "land", Land)(blocking=wait)
+        _service(names.ual(args.id, "land"), Land)(blocking=wait)
     elif args.command == "go_to":
         target = PoseStamped()
         target.header.frame_id = "map"
         target.pose.position.x, target.pose.position.y, target.pose.position.z = args.x, args.y, args.z
         half = math.radians(args.yaw) / 2.0
         target.pose.orientation.z, target.pose.orientation.w = math.sin(half), math.cos(half)
-        _service(ns + "go_to_waypoint", GoToWaypoint)(waypoint=target, blocking=wait)
+        _service(names.ual(args.id, "go_to_waypoint"), GoToWaypoint)(waypoint=target, blocking=wait)
     elif args.command == "velocity":
-        publisher = rospy.Publisher(ns + "set_velocity", TwistStamped, queue_size=1)
-        _wait_wall(lambda: publisher.get_num_connections() > 0, f"{ns}set_velocity to have its subscriber")
+        topic = names.ual(args.id, "set_velocity")
+        publisher = rospy.Publisher(topic, TwistStamped, queue_size=1)
+        _wait_wall(lambda: publisher.get_num_connections() > 0, f"{topic} to have its subscriber")
         _wait_wall(lambda: not rospy.Time.now().is_zero(), "the clock (is /clock published?)")
         command = TwistStamped()
         command.header.frame_id = "map"
@@ -100,13 +101,13 @@ def run(args) -> None:
             command.header.stamp = rospy.Time.now()
             publisher.publish(command)
             rate.sleep()
-    state = rospy.wait_for_message(ns + "state", State, timeout=10.0)
-    pose = rospy.wait_for_message(ns + "pose", PoseStamped, timeout=10.0).pose.position
-    names = {v: k for k, v in vars(State).items() if k.isupper()}
-    print(f"uav {args.id}: {names.get(state.state, state.state)} at ({pose.x:.2f}, {pose.y:.2f}, {pose.z:.2f})")
+    state = rospy.wait_for_message(names.ual(args.id, "state"), State, timeout=10.0)
+    pose = rospy.wait_for_message(names.ual(args.id, "pose"), PoseStamped, timeout=10.0).pose.position
+    state_names = {v: k for k, v in vars(State).items() if k.isupper()}
+    print(f"uav {args.id}: {state_names.get(state.state, state.state)} at ({pose.x:.2f}, {pose.y:.2f}, {pose.z:.2f})")
 
 
-def _wait_for_server(uav_id: int, ns: str, ready: bool) -> None:
+def _wait_for_server(uav_id: int, ready: bool) -> None:
     """Wait for the UAL server of `uav_id`: a simulator started a moment ago may not serve it yet.
 
     `/ual_ids` lists the ids served; once it lists others but not ours, ours is not coming. With
@@ -119,24 +120,24 @@ def _wait_for_server(uav_id: int, ns: str, ready: bool) -> None:
 
     def listed() -> bool:
         nonlocal ids
-        ids = rospy.get_param("/ual_ids", [])
+        ids = rospy.get_param(names.UAL_IDS, [])
         return bool(ids)
 
     try:
-        _wait_wall(listed, "/ual_ids")
+        _wait_wall(listed, names.UAL_IDS)
     except LookupError:
         pass
     if uav_id not in ids:
         hint = "" if ids else " (is magna_sim running? roslaunch magna_sim sim.launch)"
-        raise LookupError(f"no UAL server for UAV {uav_id}; /ual_ids = {ids}{hint}")
+        raise LookupError(f"no UAL server for UAV {uav_id}; {names.UAL_IDS} = {ids}{hint}")
     if not ready:
         return
     latest: dict[str, int] = {}
-    subscriber = rospy.Subscriber(ns + "state", State, lambda msg: latest.__setitem__("state", msg.state),
+    subscriber = rospy.Subscriber(names.ual(uav_id, "state"), State, lambda msg: latest.__setitem__("state", msg.state),
                                   queue_size=1)
     try:
         _wait_wall(lambda: latest.get("state", State.UNINITIALIZED) != State.UNINITIALIZED,
-                   f"UAV {uav_id} to be ready ({ns}state leaving UNINITIALIZED)")
+                   f"UAV {uav_id} to be ready ({names.ual(uav_id, 'state')} leaving UNINITIALIZED)")
     finally:
         subscriber.unregister()
 

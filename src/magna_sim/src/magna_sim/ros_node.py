@@ -24,6 +24,8 @@ from std_msgs.msg import Float64
 from std_srvs.srv import SetBool, SetBoolResponse
 from tf2_msgs.msg import TFMessage
 
+from magna_common import ros_names as names
+
 from .command_queue import CommandQueue
 from .depth_camera import DepthCamera
 from .mavlink_endpoint import EndpointError, MavlinkEndpoint
@@ -218,7 +220,7 @@ def _own_the_clock() -> Callable[[rospy.Time], None] | None:
 
 def _ual_served(uav_id: int) -> bool:
     """Whether some node serves the UAL of `uav_id` now (its take_off service is registered)."""
-    code, _, _ = rospy.get_master().lookupService(f"/uav_{uav_id}/ual/take_off")
+    code, _, _ = rospy.get_master().lookupService(names.ual(uav_id, "take_off"))
     return code == 1  # the master answers -1 when no node provides it
 
 
@@ -253,7 +255,7 @@ class SimNode:
                                    settings.camera["fov"]) if settings.camera["enabled"] else None
         self._clock_pub = stream_publisher("/clock", Clock)
         self._tf_pub = stream_publisher("/tf", TFMessage)
-        self._collision_pub = rospy.Publisher("/magna/sim/collisions", CollisionEvent, queue_size=100)
+        self._collision_pub = rospy.Publisher(names.SIM_COLLISIONS, CollisionEvent, queue_size=100)
         self._battery_pubs: dict[int, rospy.Publisher] = {}
         self.lockstep = Lockstep(settings.lockstep_lead, settings.lockstep_timeout) if settings.lockstep else None
         # MAVLink clients streaming OFFBOARD set-points are controllers too: the vehicle drops OFFBOARD after
@@ -269,9 +271,9 @@ class SimNode:
         for i, position in enumerate(initial_positions(settings.uavs, settings.spacing), start=1):
             self.spawn_uav(f"uav_{i}", i, settings.model, settings.flight_model, position, 0.0, interface=interface)
         self.hold = Hold(settings.start_paused)
-        self._services = [rospy.Service("/magna/sim/spawn_model", SpawnModel, self._on_spawn),
-                          rospy.Service("/magna/sim/delete_model", DeleteModel, self._on_delete),
-                          rospy.Service("/magna/sim/pause", SetBool, self._on_pause)]
+        self._services = [rospy.Service(names.SIM_SPAWN_MODEL, SpawnModel, self._on_spawn),
+                          rospy.Service(names.SIM_DELETE_MODEL, DeleteModel, self._on_delete),
+                          rospy.Service(names.SIM_PAUSE, SetBool, self._on_pause)]
 
     # --- models (simulation thread) --------------------------------------------------------------------------
     def spawn_uav(self, name, uav_id, airframe, flight_model, position, yaw, rgba=(0.2, 0.2, 0.25, 1.0),
@@ -287,12 +289,13 @@ class SimNode:
         if interface not in INTERFACES:
             raise SpawnError(f"interface: '{interface}' must be one of {', '.join(INTERFACES)} (or empty for ual)")
         with_ual, with_mavlink = interface != "mavlink", interface != "ual"
-        ids = list(rospy.get_param("/ual_ids", []))
+        ids = list(rospy.get_param(names.UAL_IDS, []))
         if with_ual and uav_id in ids and uav_id not in self.servers:
             if _ual_served(uav_id):
-                raise SpawnError(f"uav_id: {uav_id} is already in /ual_ids (another UAL server has it); pick a free id")
+                raise SpawnError(f"uav_id: {uav_id} is already in {names.UAL_IDS} (another UAL server has it); "
+                                 "pick a free id")
             # Listed by a UAL server that ended without cleaning up (killed): nobody serves it, take it over.
-            rospy.logwarn(f"magna_sim: /ual_ids lists {uav_id} but no UAL server serves it (one was killed?); "
+            rospy.logwarn(f"magna_sim: {names.UAL_IDS} lists {uav_id} but no UAL server serves it (one was killed?); "
                           "taking it over")
         if uav_id < 1:
             raise SpawnError(f"uav_id: {uav_id} must be 1 or more (UAL namespaces are /uav_{{id}})")
@@ -310,19 +313,19 @@ class SimNode:
             rospy.loginfo(f"magna_sim: UAV {uav_id} speaks MAVLink (system {uav_id}) on UDP {endpoint.local_port}, "
                           f"sending to 127.0.0.1:{endpoint.remote[1]}")
         if self.lockstep is not None:
-            self._step_subs[uav_id] = rospy.Subscriber(f"/magna/uav_{uav_id}/control_step", Float64,
+            self._step_subs[uav_id] = rospy.Subscriber(names.manager(uav_id, "control_step"), Float64,
                                                        self._on_control_step, uav_id, queue_size=1, tcp_nodelay=True)
         if not with_ual:  # a stand-in for an autopilot outside the simulator: no UAL, battery or camera topics
             rospy.loginfo(f"magna_sim: spawned {name} (MAVLink only, {airframe}, {flight_model}) "
                           f"at {np.round(vehicle.position, 2).tolist()}")
             return vehicle
         self.servers[uav_id] = UalServer(uav_id, self.world.ual[uav_id], self.queue, self.settings.map_origin_geo)
-        self._battery_pubs[uav_id] = rospy.Publisher(f"/uav_{uav_id}/mavros/battery", BatteryState, queue_size=1)
+        self._battery_pubs[uav_id] = rospy.Publisher(names.battery(uav_id), BatteryState, queue_size=1)
         if self._camera is not None:
-            base = f"/uav_{uav_id}/camera/depth/"
-            self.cameras[uav_id] = (rospy.Publisher(base + "image_raw", Image, queue_size=1),
-                                    rospy.Publisher(base + "camera_info", CameraInfo, queue_size=1))
-        rospy.set_param("/ual_ids", sorted(set(ids) | {uav_id}))
+            self.cameras[uav_id] = (rospy.Publisher(names.depth_camera(uav_id, "image_raw"), Image, queue_size=1),
+                                    rospy.Publisher(names.depth_camera(uav_id, "camera_info"), CameraInfo,
+                                                    queue_size=1))
+        rospy.set_param(names.UAL_IDS, sorted(set(ids) | {uav_id}))
         rospy.loginfo(f"magna_sim: spawned {name} (UAL id {uav_id}, {airframe}, {flight_model}) "
                       f"at {np.round(vehicle.position, 2).tolist()}")
         return vehicle
@@ -370,8 +373,8 @@ class SimNode:
         self._battery_pubs.pop(uav_id).unregister()
         for publisher in self.cameras.pop(uav_id, ()):
             publisher.unregister()
-        ids = [i for i in rospy.get_param("/ual_ids", []) if i != uav_id]
-        rospy.set_param("/ual_ids", ids)
+        ids = [i for i in rospy.get_param(names.UAL_IDS, []) if i != uav_id]
+        rospy.set_param(names.UAL_IDS, ids)
 
     # --- services (callback threads) -------------------------------------------------------------------------
     def _on_spawn(self, req):
@@ -394,11 +397,11 @@ class SimNode:
                 return f"spawned {req.shape} '{req.name}'"
             raise SpawnError(f"kind: '{req.kind}' must be 'uav' or 'obstacle'")
 
-        return SpawnModelResponse(*self._answer("spawn_model", spawn))
+        return SpawnModelResponse(*self._answer(names.SIM_SPAWN_MODEL, spawn))
 
     def _served_as(self, uav_id: int) -> str:
         """How clients reach a UAV, for the spawn service's answer."""
-        ways = [f"/uav_{uav_id}/ual"] if uav_id in self.servers else []
+        ways = [names.ual(uav_id)] if uav_id in self.servers else []
         if uav_id in self.mavlink:
             endpoint = self.mavlink[uav_id][0]
             ways.append(f"MAVLink system {uav_id} on UDP {endpoint.local_port} "
@@ -406,8 +409,8 @@ class SimNode:
         return " and ".join(ways)
 
     def _on_delete(self, req):
-        return DeleteModelResponse(*self._answer("delete_model", lambda: f"deleted {self.delete(req.name)} "
-                                                                         f"'{req.name}'"))
+        return DeleteModelResponse(*self._answer(names.SIM_DELETE_MODEL,
+                                                 lambda: f"deleted {self.delete(req.name)} '{req.name}'"))
 
     def _on_control_step(self, msg: Float64, uav_id: int) -> None:
         self.lockstep.heard(uav_id, msg.data)
@@ -415,16 +418,17 @@ class SimNode:
 
     def _on_pause(self, req):
         message = self.hold.set(req.data, self.world.time)
-        rospy.loginfo(f"/magna/sim/pause: {message}")
+        rospy.loginfo(f"{names.SIM_PAUSE}: {message}")
         return SetBoolResponse(success=True, message=message)
 
     def _answer(self, service: str, action) -> tuple[bool, str]:
+        """Run `action` in the simulation loop; (success, message) for the service's answer, logged under its name."""
         try:
             message = self.queue.run(action)
         except (ValueError, RuntimeError) as err:  # SpawnError, ShapeError, LoopStopped
-            rospy.logerr(f"/magna/sim/{service}: {err}")
+            rospy.logerr(f"{service}: {err}")
             return False, str(err)
-        rospy.loginfo(f"/magna/sim/{service}: {message}")
+        rospy.loginfo(f"{service}: {message}")
         return True, message
 
     # --- the loop --------------------------------------------------------------------------------------------

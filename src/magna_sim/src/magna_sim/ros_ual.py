@@ -10,6 +10,7 @@ the UAV has arrived (ual_logic: held within the arrival radius), and fails with
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -32,6 +33,7 @@ from uav_abstraction_layer.srv import (
 )
 
 from magna_common import geo
+from magna_common import ros_names as names
 
 from .command_queue import CommandQueue, LoopStopped
 from .streams import stream_publisher
@@ -63,21 +65,21 @@ class UalServer:
         self.map_origin_geo = map_origin_geo
         self.base_frame = f"uav_{uav_id}/base_link"
         self.home_frame = f"uav_{uav_id}_home"
-        ns = f"/uav_{uav_id}/ual/"
-        self._pose_pub = stream_publisher(ns + "pose", PoseStamped)
-        self._velocity_pub = stream_publisher(ns + "velocity", TwistStamped)
-        self._odom_pub = stream_publisher(ns + "odom", Odometry)
-        self._state_pub = stream_publisher(ns + "state", State)
-        self._subscribers = [rospy.Subscriber(ns + "set_pose", PoseStamped, self._on_set_pose, queue_size=1),
-                             rospy.Subscriber(ns + "set_velocity", TwistStamped, self._on_set_velocity,
+        ual = functools.partial(names.ual, uav_id)  # this UAV's UAL names: ual("pose")
+        self._pose_pub = stream_publisher(ual("pose"), PoseStamped)
+        self._velocity_pub = stream_publisher(ual("velocity"), TwistStamped)
+        self._odom_pub = stream_publisher(ual("odom"), Odometry)
+        self._state_pub = stream_publisher(ual("state"), State)
+        self._subscribers = [rospy.Subscriber(ual("set_pose"), PoseStamped, self._on_set_pose, queue_size=1),
+                             rospy.Subscriber(ual("set_velocity"), TwistStamped, self._on_set_velocity,
                                               queue_size=1)]
         self._services = [
-            rospy.Service(ns + "take_off", TakeOff, self._take_off),
-            rospy.Service(ns + "land", Land, self._land),
-            rospy.Service(ns + "go_to_waypoint", GoToWaypoint, self._go_to_waypoint),
-            rospy.Service(ns + "go_to_waypoint_geo", GoToWaypointGeo, self._go_to_waypoint_geo),
-            rospy.Service(ns + "set_home", SetHome, self._set_home),
-            rospy.Service(ns + "recover_from_manual", Empty, self._recover_from_manual)]
+            rospy.Service(ual("take_off"), TakeOff, self._take_off),
+            rospy.Service(ual("land"), Land, self._land),
+            rospy.Service(ual("go_to_waypoint"), GoToWaypoint, self._go_to_waypoint),
+            rospy.Service(ual("go_to_waypoint_geo"), GoToWaypointGeo, self._go_to_waypoint_geo),
+            rospy.Service(ual("set_home"), SetHome, self._set_home),
+            rospy.Service(ual("recover_from_manual"), Empty, self._recover_from_manual)]
         self._pose = PoseStamped()
         self._pose.header.frame_id = MAP_FRAME
         self._twist = TwistStamped()
@@ -133,18 +135,18 @@ class UalServer:
             self.queue.run(lambda: self.logic.set_pose(self._to_map(msg.header.frame_id, msg.pose.position),
                                                        quaternion_yaw(msg.pose.orientation)))
         except (CommandRefused, LoopStopped) as err:
-            rospy.logwarn_throttle(2.0, f"/uav_{self.uav_id}/ual/set_pose ignored: {err}")
+            rospy.logwarn_throttle(2.0, f"{names.ual(self.uav_id, 'set_pose')} ignored: {err}")
 
     def _on_set_velocity(self, msg: TwistStamped) -> None:
         if msg.header.frame_id not in ("", MAP_FRAME):
-            rospy.logwarn_throttle(2.0, f"/uav_{self.uav_id}/ual/set_velocity ignored: header.frame_id "
+            rospy.logwarn_throttle(2.0, f"{names.ual(self.uav_id, 'set_velocity')} ignored: header.frame_id "
                                         f"'{msg.header.frame_id}' unknown; send velocities in '{MAP_FRAME}'")
             return
         linear = (msg.twist.linear.x, msg.twist.linear.y, msg.twist.linear.z)
         try:
             self.queue.run(lambda: self.logic.set_velocity(linear, msg.twist.angular.z))
         except (CommandRefused, LoopStopped) as err:
-            rospy.logwarn_throttle(2.0, f"/uav_{self.uav_id}/ual/set_velocity ignored: {err}")
+            rospy.logwarn_throttle(2.0, f"{names.ual(self.uav_id, 'set_velocity')} ignored: {err}")
 
     # --- services --------------------------------------------------------------------------------------------
     def _take_off(self, req):
@@ -204,7 +206,7 @@ class UalServer:
         try:
             return fn()
         except (ValueError, LoopStopped) as err:  # CommandRefused is a ValueError
-            rospy.logerr(f"/uav_{self.uav_id}/ual/{name}: {err}")
+            rospy.logerr(f"{names.ual(self.uav_id, name)}: {err}")
             raise rospy.ServiceException(str(err)) from None
 
     # --- frames ----------------------------------------------------------------------------------------------
