@@ -37,6 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from magna_common import geo
+from magna_common import ros_names as names
 from magna_common.ual_commands import CommandRefused, finite_vector, require_finite
 
 from . import autopilot as ap
@@ -264,7 +265,7 @@ class UalBackend:
     def _fail(self, op: Operation, reason: str) -> None:
         if not op.finished:
             op.error = reason
-            self.log.error(f"/uav_{self.settings.uav_id}/ual/{op.name}: {reason}")
+            self.log.error(f"{names.ual(self.settings.uav_id, op.name)}: {reason}")
 
     # --- commands -------------------------------------------------------------------------------------------------
     def take_off(self, height: float, blocking: bool) -> None:

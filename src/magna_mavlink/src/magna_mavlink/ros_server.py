@@ -12,9 +12,12 @@ and publishes the topics.
 """
 from __future__ import annotations
 
+import functools
 import math
 import sys
 import threading
+
+from magna_common import ros_names as names
 
 from .backend import CommandRefused, UalBackend
 from .cli import PARAMETERS, OptionError, Options, build_parser, id_from_argv, resolve
@@ -58,23 +61,23 @@ class UalServer:
         self.backend = backend
         uav_id = backend.settings.uav_id
         self.uav_id = uav_id
-        ns = f"/uav_{uav_id}/ual/"
-        self._pose_pub = rospy.Publisher(ns + "pose", PoseStamped, queue_size=1)
-        self._velocity_pub = rospy.Publisher(ns + "velocity", TwistStamped, queue_size=1)
-        self._odom_pub = rospy.Publisher(ns + "odom", Odometry, queue_size=1)
-        self._state_pub = rospy.Publisher(ns + "state", State, queue_size=1)
-        self._battery_pub = rospy.Publisher(f"/uav_{uav_id}/mavros/battery", BatteryState, queue_size=1)
-        self._link_pub = rospy.Publisher(f"/uav_{uav_id}/ual_mavlink/link", String, queue_size=1, latch=True)
+        ual = functools.partial(names.ual, uav_id)  # this UAV's UAL names: ual("pose")
+        self._pose_pub = rospy.Publisher(ual("pose"), PoseStamped, queue_size=1)
+        self._velocity_pub = rospy.Publisher(ual("velocity"), TwistStamped, queue_size=1)
+        self._odom_pub = rospy.Publisher(ual("odom"), Odometry, queue_size=1)
+        self._state_pub = rospy.Publisher(ual("state"), State, queue_size=1)
+        self._battery_pub = rospy.Publisher(names.battery(uav_id), BatteryState, queue_size=1)
+        self._link_pub = rospy.Publisher(names.mavlink_link(uav_id), String, queue_size=1, latch=True)
         self._tf = tf2_ros.TransformBroadcaster() if tf else None
-        self._subscribers = [rospy.Subscriber(ns + "set_pose", PoseStamped, self._on_set_pose, queue_size=1),
-                             rospy.Subscriber(ns + "set_velocity", TwistStamped, self._on_set_velocity, queue_size=1)]
+        self._subscribers = [rospy.Subscriber(ual("set_pose"), PoseStamped, self._on_set_pose, queue_size=1),
+                             rospy.Subscriber(ual("set_velocity"), TwistStamped, self._on_set_velocity, queue_size=1)]
         self._services = [
-            rospy.Service(ns + "take_off", TakeOff, self._take_off),
-            rospy.Service(ns + "land", Land, self._land),
-            rospy.Service(ns + "go_to_waypoint", GoToWaypoint, self._go_to_waypoint),
-            rospy.Service(ns + "go_to_waypoint_geo", GoToWaypointGeo, self._go_to_waypoint_geo),
-            rospy.Service(ns + "set_home", SetHome, self._set_home),
-            rospy.Service(ns + "recover_from_manual", Empty, self._recover_from_manual)]
+            rospy.Service(ual("take_off"), TakeOff, self._take_off),
+            rospy.Service(ual("land"), Land, self._land),
+            rospy.Service(ual("go_to_waypoint"), GoToWaypoint, self._go_to_waypoint),
+            rospy.Service(ual("go_to_waypoint_geo"), GoToWaypointGeo, self._go_to_waypoint_geo),
+            rospy.Service(ual("set_home"), SetHome, self._set_home),
+            rospy.Service(ual("recover_from_manual"), Empty, self._recover_from_manual)]
         self._pose, self._twist, self._odom = PoseStamped(), TwistStamped(), Odometry()
         self._pose.header.frame_id = self._twist.header.frame_id = self._odom.header.frame_id = MAP_FRAME
         self._odom.child_frame_id = f"uav_{uav_id}/base_link"
@@ -145,18 +148,18 @@ class UalServer:
         try:
             self.backend.set_pose(msg.header.frame_id, (p.x, p.y, p.z), yaw_of(msg.pose.orientation))
         except CommandRefused as err:
-            self.rospy.logwarn_throttle(2.0, f"/uav_{self.uav_id}/ual/set_pose ignored: {err}")
+            self.rospy.logwarn_throttle(2.0, f"{names.ual(self.uav_id, 'set_pose')} ignored: {err}")
 
     def _on_set_velocity(self, msg) -> None:
         if msg.header.frame_id not in ("", MAP_FRAME):
-            self.rospy.logwarn_throttle(2.0, f"/uav_{self.uav_id}/ual/set_velocity ignored: header.frame_id "
+            self.rospy.logwarn_throttle(2.0, f"{names.ual(self.uav_id, 'set_velocity')} ignored: header.frame_id "
                                              f"'{msg.header.frame_id}' unknown; send velocities in '{MAP_FRAME}'")
             return
         v = msg.twist.linear
         try:
             self.backend.set_velocity((v.x, v.y, v.z), msg.twist.angular.z)
         except CommandRefused as err:
-            self.rospy.logwarn_throttle(2.0, f"/uav_{self.uav_id}/ual/set_velocity ignored: {err}")
+            self.rospy.logwarn_throttle(2.0, f"{names.ual(self.uav_id, 'set_velocity')} ignored: {err}")
 
     # --- services -------------------------------------------------------------------------------------------------
     def _take_off(self, req):
@@ -185,7 +188,7 @@ class UalServer:
         try:
             action()
         except CommandRefused as err:
-            self.rospy.logerr(f"/uav_{self.uav_id}/ual/{name}: {err}")
+            self.rospy.logerr(f"{names.ual(self.uav_id, name)}: {err}")
             raise self.rospy.ServiceException(str(err)) from None
         return self._response_of(req)
 
@@ -199,23 +202,23 @@ def register_id(rospy, uav_id: int) -> None:
     """Add `uav_id` to /ual_ids; refuse one a live UAL server already serves (a dead one's is taken over)."""
     import rosservice
 
-    ids = list(rospy.get_param("/ual_ids", []))
+    ids = list(rospy.get_param(names.UAL_IDS, []))
     if uav_id in ids:
         try:
-            node = rosservice.get_service_node(f"/uav_{uav_id}/ual/take_off")
+            node = rosservice.get_service_node(names.ual(uav_id, "take_off"))
         except rosservice.ROSServiceIOException:
             node = None
         if node:
-            raise OptionError(f"--id {uav_id}: UAV {uav_id} is already served by {node} (/ual_ids = {ids}); "
+            raise OptionError(f"--id {uav_id}: UAV {uav_id} is already served by {node} ({names.UAL_IDS} = {ids}); "
                               f"pick a free id")
-        rospy.logwarn(f"ual_mavlink: /ual_ids lists {uav_id} but no UAL server serves it (one was killed?); "
+        rospy.logwarn(f"ual_mavlink: {names.UAL_IDS} lists {uav_id} but no UAL server serves it (one was killed?); "
                       f"taking it over")
-    rospy.set_param("/ual_ids", sorted(set(ids) | {uav_id}))
+    rospy.set_param(names.UAL_IDS, sorted(set(ids) | {uav_id}))
 
 
 def unregister_id(rospy, uav_id: int) -> None:
     try:
-        rospy.set_param("/ual_ids", [i for i in rospy.get_param("/ual_ids", []) if i != uav_id])
+        rospy.set_param(names.UAL_IDS, [i for i in rospy.get_param(names.UAL_IDS, []) if i != uav_id])
     except Exception:  # noqa: BLE001 - the master may be gone already at shutdown
         pass
 
@@ -314,5 +317,5 @@ def main(argv=None) -> int:
         server.shutdown()
         link.close()
     rospy.loginfo(f"ual_mavlink: UAV {options.uav_id} stopped ({NAMES[backend.state]}); id {options.uav_id} "
-                  f"left /ual_ids")
+                  f"left {names.UAL_IDS}")
     return 0
