@@ -18,12 +18,10 @@ from magna_msgs.srv import (
     OrcaComputeVelocityRequest,
 )
 
+from magna_common import ros_names as names
 from magna_orca_cpp import reference
 from magna_orca_cpp.model import Agent, Params, Solution
 from magna_orca_cpp.validation import OrcaInputError
-
-ONE_SERVICE = "/magna/orca3d/compute_velocity"
-BATCH_SERVICE = "/magna/orca3d/compute_velocities"
 
 
 def agent_to_msg(agent: Agent, agent_id: int) -> OrcaAgent:
@@ -46,7 +44,8 @@ def _vector(msg: Vector3) -> np.ndarray:
 class OrcaServiceClient:
     """The two services over persistent connections (reconnected when they drop)."""
 
-    def __init__(self, one_service: str = ONE_SERVICE, batch_service: str = BATCH_SERVICE):
+    def __init__(self, one_service: str = names.ORCA_COMPUTE_VELOCITY,
+                 batch_service: str = names.ORCA_COMPUTE_VELOCITIES):
         self._names = {OrcaComputeVelocity: one_service, OrcaComputeVelocities: batch_service}
         self._proxies: dict = {}
 

@@ -27,6 +27,7 @@ from std_msgs.msg import ColorRGBA
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import MarkerArray
 
+from magna_common import ros_names as names
 from magna_worlds.errors import WorldError
 from magna_worlds.generate import ResolvedWorld
 from magna_worlds.markers import OBSTACLE_COLOR, world_markers
@@ -63,20 +64,13 @@ Parameters set: /magna/world/origin_geo [lat, lon, alt] and /magna/world/boundar
 Example: rosrun magna_worlds world _world:=Gym _subworld:=Four_Cylinders _seed:=1
 """
 
-SPAWN_SERVICE = "/magna/sim/spawn_model"
-DELETE_SERVICE = "/magna/sim/delete_model"
-
-
-WORLD_PARAMS = "/magna/world"  # what the node tells others: origin_geo, boundaries
-
-
 class WorldNode:
     def __init__(self):
         # An earlier run's world (on the same master) must not stand in for this one's: a default
         # box of ours would never replace its boundaries.
-        if rospy.has_param(WORLD_PARAMS):
-            rospy.delete_param(WORLD_PARAMS)
-        hyper = rospy.get_param("/magna/hyperparameters", {}) or {}
+        if rospy.has_param(names.WORLD):  # what the node tells others: origin_geo, boundaries
+            rospy.delete_param(names.WORLD)
+        hyper = rospy.get_param(names.HYPERPARAMETERS, {}) or {}
         seed = int(rospy.get_param("~seed", hyper.get("seed", 0) or 0))
         extra = [Path(p) for p in rospy.get_param("~worlds_path", [])]
         self.registry = WorldRegistry(seed)
@@ -88,7 +82,7 @@ class WorldNode:
         self.lock = threading.Lock()
         self.spawned: dict[str, list[str]] = {}  # part id -> obstacle models in the simulator
         self.tf_pub = rospy.Publisher("/tf_static", TFMessage, queue_size=1, latch=True)
-        self.marker_pub = rospy.Publisher("/magna/world/markers", MarkerArray, queue_size=1, latch=True)
+        self.marker_pub = rospy.Publisher(names.WORLD_MARKERS, MarkerArray, queue_size=1, latch=True)
         self._publish()
         start_file = rospy.get_param("~world_file", "")
         start_world, start_sub = rospy.get_param("~world", ""), rospy.get_param("~subworld", "")
@@ -100,9 +94,9 @@ class WorldNode:
                 else:
                     self.registry.add_named(part_id, start_world, start_sub)
                 self._after_add(part_id)
-        rospy.Service("/magna/world/add", AddWorldPart, self.handle_add)
-        rospy.Service("/magna/world/get_fspset", GetFreeSpacePoseSet, self.handle_get)
-        rospy.Service("/magna/world/delete", DeleteWorldPart, self.handle_delete)
+        rospy.Service(names.WORLD_ADD, AddWorldPart, self.handle_add)
+        rospy.Service(names.WORLD_GET_FSPSET, GetFreeSpacePoseSet, self.handle_get)
+        rospy.Service(names.WORLD_DELETE, DeleteWorldPart, self.handle_delete)
 
     # --- services ----------------------------------------------------------------------------------------------
 
@@ -115,9 +109,9 @@ class WorldNode:
                 elif definition and definition != "from_hyperparameters":
                     part = self.registry.add_inline(req.id, definition)
                 else:
-                    hyper = rospy.get_param("/magna/hyperparameters", {}) or {}
+                    hyper = rospy.get_param(names.HYPERPARAMETERS, {}) or {}
                     if not hyper.get("world") or not hyper.get("subworld"):
-                        return AddWorldPartResponse(False, "world: empty, and /magna/hyperparameters has no "
+                        return AddWorldPartResponse(False, f"world: empty, and {names.HYPERPARAMETERS} has no "
                                                     "world/subworld; give world and subworld or definition_json", [])
                     part = self.registry.add_named(req.id, hyper["world"], hyper["subworld"])
             except WorldError as err:
@@ -155,11 +149,11 @@ class WorldNode:
     def _after_add(self, part_id: str) -> str:
         part = self.registry.parts[part_id]
         if part.world.origin_geo:  # for nodes that convert to and from WGS84 (go_to_waypoint_geo, real UAVs)
-            rospy.set_param(f"{WORLD_PARAMS}/origin_geo", list(part.world.origin_geo))
+            rospy.set_param(names.WORLD_ORIGIN_GEO, list(part.world.origin_geo))
         # A box MAGNA made up for a file without world_boundaries never replaces one that a file gave.
         if np.isfinite(part.world.boundaries).all() and not (part.world.boundaries_defaulted
-                                                             and rospy.has_param(f"{WORLD_PARAMS}/boundaries")):
-            rospy.set_param(f"{WORLD_PARAMS}/boundaries", part.world.boundaries.tolist())
+                                                             and rospy.has_param(names.WORLD_BOUNDARIES)):
+            rospy.set_param(names.WORLD_BOUNDARIES, part.world.boundaries.tolist())
         for warning in part.warnings:
             rospy.logwarn("world part %r: %s", part_id, warning)
         self._publish()
@@ -201,10 +195,10 @@ class WorldNode:
         if not self.spawn_obstacles:
             return "obstacles not spawned (~spawn_obstacles false)"
         try:
-            rospy.wait_for_service(SPAWN_SERVICE, timeout=self.sim_wait)
+            rospy.wait_for_service(names.SIM_SPAWN_MODEL, timeout=self.sim_wait)
         except rospy.ROSException:
-            return f"obstacles not spawned: no simulator ({SPAWN_SERVICE} absent)"
-        spawn = rospy.ServiceProxy(SPAWN_SERVICE, SpawnModel)
+            return f"obstacles not spawned: no simulator ({names.SIM_SPAWN_MODEL} absent)"
+        spawn = rospy.ServiceProxy(names.SIM_SPAWN_MODEL, SpawnModel)
         done, failures = [], []
         for o in obstacles:
             req = SpawnModelRequest(name=o.name, kind="obstacle", shape=o.shape,
@@ -230,7 +224,7 @@ class WorldNode:
         names = self.spawned.pop(part_id, [])
         if not names:
             return 0
-        delete = rospy.ServiceProxy(DELETE_SERVICE, DeleteModel)
+        delete = rospy.ServiceProxy(names.SIM_DELETE_MODEL, DeleteModel)
         removed = 0
         for name in names:
             try:
