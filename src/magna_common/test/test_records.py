@@ -92,6 +92,14 @@ def test_a_hand_made_result_takes_the_defaults(tmp_path):
     assert result.hyperparameters.world == "Gym" and result.hyperparameters.n_simulation is None
 
 
+def test_fields_not_known_yet_round_trip_as_null():
+    """What the batch hands its supervisor before the run: most fields still None."""
+    known = SimulationResult(id=2, seed=7, hyperparameters=Hyperparameters.from_param(HYPER))
+    assert json.loads(json.dumps(known.to_dict()))["collisions"] is None
+    assert SimulationResult.from_dict(json.loads(json.dumps(known.to_dict())), "--extra") == known
+    assert SimulationResult.from_dict(SimulationResult().to_dict(), "empty") == SimulationResult()
+
+
 def test_how_a_result_ended():
     assert SimulationResult(termination=INTERRUPTED).interrupted
     assert SimulationResult(termination=SUPERVISOR_FAILED).failed_to_run

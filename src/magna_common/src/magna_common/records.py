@@ -100,8 +100,9 @@ _strs = _tuple_of(_str)
 
 def _key(name: str | None = None, read: Callable[[Any], Any] = _str, default: Any = None,
          factory: Callable[[], Any] | None = None):
-    """A record field: its JSON key (default: the attribute's name) and how a value is read."""
-    metadata = {"key": name, "read": read}
+    """A record field: its JSON key (default: the attribute's name) and how a value is read; a field whose
+    default is None reads null as None."""
+    metadata = {"key": name, "read": _optional(read) if default is None and factory is None else read}
     if factory is not None:
         return field(default_factory=factory, metadata=metadata)
     return field(default=default, metadata=metadata)
@@ -237,18 +238,17 @@ class SimulationResult(_Record):
     setup_wall_time: float = _key(read=_float, default=0.0)
     reported: bool = _key(read=_bool, default=False)  # the ground station called the termination service
     final: bool = _key(read=_bool, default=False)  # False: written on the report, before the launch was down
-    hyperparameters: Hyperparameters | None = _key(
-        read=_optional(lambda v: Hyperparameters.from_dict(v, "hyperparameters")))
-    world_file: Path | None = _key(read=_optional(_path))
-    mission_file: Path | None = _key(read=_optional(_path))
-    data_dir: Path | None = _key(read=_optional(_path))
-    time_limit: float | None = _key(read=_optional(_float))
+    hyperparameters: Hyperparameters | None = _key(read=lambda v: Hyperparameters.from_dict(v, "hyperparameters"))
+    world_file: Path | None = _key(read=_path)
+    mission_file: Path | None = _key(read=_path)
+    data_dir: Path | None = _key(read=_path)
+    time_limit: float | None = _key(read=_float)
     timed_out: bool = _key(read=_bool, default=False)
     gs_stop_called: bool = _key(read=_bool, default=False)
     launch_command: tuple[str, ...] = _key(read=_strs, default=())
-    launch_pid: int | None = _key(read=_optional(_int))
-    launch_exit_code: int | None = _key(read=_optional(_int))
-    supervisor_pid: int | None = _key(read=_optional(_int))
+    launch_pid: int | None = _key(read=_int)
+    launch_exit_code: int | None = _key(read=_int)
+    supervisor_pid: int | None = _key(read=_int)
     leftover_processes_killed: tuple[str, ...] = _key(read=_strs, default=())
     started_at: str = _key(default="")
     ended_at: str = _key(default="")
@@ -386,9 +386,9 @@ def _records_of(cls: type[R], what: str) -> Callable[[Any], tuple]:
 @dataclass(frozen=True)
 class RecordedPoseSet(_Record):
     type: str = _key(default="")
-    path: str | None = _key(read=_optional(_str))  # the zigzag path's name; None for other pose sets
+    path: str | None = _key(read=_str)  # the zigzag path's name; None for other pose sets
     frames: tuple[str, ...] = _key(read=_strs, default=())
-    cells: tuple[tuple[float, ...], ...] | None = _key(read=_optional(_vectors))
+    cells: tuple[tuple[float, ...], ...] | None = _key(read=_vectors)
     positions: tuple[tuple[float, ...], ...] = _key(read=_vectors, default=())
     orientations: tuple[tuple[float, ...], ...] = _key(read=_vectors, default=())  # quaternions x, y, z, w
     extra: dict[str, Any] = _extra()
@@ -428,8 +428,8 @@ class RecordedWorldPart(_Record):
     source: str = _key(default="")  # the world file, or what made the part
     included: tuple[str, ...] = _key(read=_strs, default=())
     seed: int = _key(read=_int, default=0)
-    world_boundaries: tuple[tuple[float, float], ...] | None = _key(read=_optional(_boundaries))
-    origin_geo: tuple[float, ...] | None = _key(read=_optional(_vector))
+    world_boundaries: tuple[tuple[float, float], ...] | None = _key(read=_boundaries)
+    origin_geo: tuple[float, ...] | None = _key(read=_vector)
     geometries: tuple[RecordedGeometry, ...] = _key(read=_records_of(RecordedGeometry, "geometry"), default=())
     obstacles: tuple[RecordedObstacle, ...] = _key(read=_records_of(RecordedObstacle, "obstacle"), default=())
     deleted: bool = _key(read=_bool, default=False)  # deleted during the run (missions delete their world)
@@ -446,7 +446,7 @@ def _parts(value: Any) -> dict[str, RecordedWorldPart]:
 class WorldRecord(_Record):
     """A simulation's world.json: every world part the run had, deleted ones too, by part id."""
 
-    seed: int | None = _key(read=_optional(_int))
+    seed: int | None = _key(read=_int)
     parts: dict[str, RecordedWorldPart] = _key(read=_parts, factory=dict)
     extra: dict[str, Any] = _extra()
 
