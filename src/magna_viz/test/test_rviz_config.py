@@ -7,6 +7,7 @@ import math
 
 import pytest
 
+from magna_common.records import WorldRecord
 from magna_viz import rviz_config as rc
 from magna_viz.replay.plan import view_box
 from magna_viz.scene import DEFAULT_TOPIC, NAMESPACES
@@ -140,16 +141,17 @@ def test_the_fitted_camera_sees_the_whole_box_and_no_more_than_it_must(box, yaw,
 
 
 def test_the_view_box_is_the_world_inside_its_boundaries_and_the_flights():
-    world = {"parts": {"main": {
+    world = WorldRecord.from_dict({"parts": {"main": {
         "world_boundaries": [[-20, 20], [-20, 20], [0, 10]],
         "geometries": [{"position": [0, 0, 1], "dimensions": [4, 4, 2]},
                        {"position": [0, 0, 0], "dimensions": [1000, 1000, 0.1]}],  # a huge ground, clipped
-        "obstacles": []}}}
+        "obstacles": []}}}, "world.json")
     flights = ((-1.0, 30.0), (0.0, 1.0), (0.0, 3.0))  # a flight beyond the boundaries still shows
     box = view_box(world, flights, "world")
     assert box[0][0] < -19 and box[0][1] > 30 and box[1][0] < -19 and box[1][1] > 19
     assert view_box(world, flights, "uavs")[1][1] < 5
     assert view_box(world, flights, "none") is None
     assert view_box(None, None, "world") is None
-    only_bounds = view_box({"scenario": {"world_boundaries": [[0, 10], [0, 10], [0, 5]]}}, None, "world")
+    bounds_only = WorldRecord.from_dict({"parts": {"main": {"world_boundaries": [[0, 10], [0, 10], [0, 5]]}}}, "w")
+    only_bounds = view_box(bounds_only, None, "world")
     assert only_bounds[0][0] < 0 and only_bounds[0][1] > 10

@@ -1,35 +1,32 @@
 """A dataset's index.html: the summary table of its simulations, each linked to its report.
 
-It reads every simulation_<m>/result.json (the same facts summary.csv holds, and a few more) and
+It reads every simulation_<m>/result.json (magna_common.records.SimulationResult: the same facts
+summary.csv holds, and a few more) and
 shows the dataset's world.png and mission.png when `magna run` has drawn them. The page links to
 the files beside it, so it moves with its dataset folder.
 """
 from __future__ import annotations
 
-import json
-import re
 from pathlib import Path
 
+from magna_common.records import RecordError, SimulationResult
+from magna_common.storage_tree import RESULT_FILE, existing_simulations, simulation_dir
 from magna_viz import pages
-from magna_viz.report import REPORT_FILE, RESULT_FILE
+from magna_viz.report import REPORT_FILE
 
 INDEX_FILE = "index.html"
-_SIMULATION = re.compile(r"^simulation_(\d+)$")
 
 
 def simulation_dirs(dataset_dir: Path) -> list[Path]:
     """The simulation_<m> folders of a dataset, by m."""
-    found = [(int(m.group(1)), p) for p in Path(dataset_dir).iterdir()
-             if p.is_dir() and (m := _SIMULATION.match(p.name))]
-    return [p for _, p in sorted(found)]
+    return [simulation_dir(dataset_dir, m) for m in existing_simulations(dataset_dir)]
 
 
-def _result(sim_dir: Path) -> dict | None:
+def _result(sim_dir: Path) -> SimulationResult | None:
     try:
-        data = json.loads((sim_dir / RESULT_FILE).read_text())
-    except (OSError, ValueError):
+        return SimulationResult.read(sim_dir / RESULT_FILE)
+    except RecordError:
         return None
-    return data if isinstance(data, dict) else None
 
 
 def write_index(dataset_dir: Path) -> Path:
@@ -45,16 +42,13 @@ def write_index(dataset_dir: Path) -> Path:
         if result is None:
             rows.append((link, "", '<span class="missing">no result.json</span>', "", "", "", "", ""))
             continue
-        ok = bool(result.get("success"))
-        successes += ok
-        collisions += int(result.get("collisions") or 0)
-        duration = float(result.get("sim_duration") or 0.0)
-        durations.append(duration)
-        rows.append((link, pages.escape(result.get("seed", "")),
-                     '<span class="ok">yes</span>' if ok else '<span class="bad">no</span>',
-                     pages.escape(result.get("outcome", "")), f"{duration:.1f}",
-                     f"{float(result.get('wall_time') or 0.0):.1f}", pages.escape(result.get("collisions", 0)),
-                     pages.escape(result.get("message", ""))))
+        successes += result.success
+        collisions += result.collisions or 0
+        durations.append(result.sim_duration)
+        rows.append((link, pages.escape("" if result.seed is None else result.seed),
+                     '<span class="ok">yes</span>' if result.success else '<span class="bad">no</span>',
+                     pages.escape(result.outcome), f"{result.sim_duration:.1f}", f"{result.wall_time:.1f}",
+                     pages.escape(result.collisions or 0), pages.escape(result.message)))
     title = "Dataset " + " / ".join(dataset_dir.parts[-6:])
     mean = sum(durations) / len(durations) if durations else 0.0
     parts = [f"<h1>{pages.escape(title)}</h1>", f'<p class="sub">{pages.escape(str(dataset_dir))}</p>',

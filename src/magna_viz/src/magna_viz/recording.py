@@ -1,14 +1,16 @@
 """A recorded simulation folder -> typed data for the plots and the report (no ROS master, no rospy).
 
-A simulation folder (magna_master.storage) holds:
+A simulation folder (magna_common.storage_tree) holds:
 
     simulation.bag  what the ground station bagged: /uav_N/ual/pose and velocity, /magna/uav_N/goal,
                     path/raw and path/smoothed, /magna/world/markers, /magna/sm/<machine>/status and structure
+                    (read through magna_common.simulation_bag)
     uav_<id>.csv    each UAV manager's recorder rows (magna_uav.recorder), about 10 per simulated second
                     while the UAV had a role, with the gaps its evaluator judged safety on
     mission.json    the mission flown: each UAV's model (-> airframe: safety radius, max speed) and colour
-    world.json      the world node's record of every world part (magna_viz.recorded_world)
-    result.json     the batch's verdict: success, outcome, message, sim_duration, collisions, hyperparameters
+    world.json      the world node's record of every world part (magna_common.records.WorldRecord, drawn by
+                    magna_viz.recorded_world)
+    result.json     the batch's verdict (magna_common.records.SimulationResult)
 
 Either the bag or the CSVs may be missing (`magna run --no-bag` / `--skip-save`): what exists is used and
 `Recording.notes` says what is missing and what that costs. Per UAV, positions and velocities come from
@@ -22,7 +24,6 @@ clock of the simulation (the bag starts near 0).
 """
 from __future__ import annotations
 
-import json
 import math
 import re
 from collections import defaultdict
@@ -31,15 +32,13 @@ from pathlib import Path
 
 import numpy as np
 
+from magna_common.records import RecordError, SimulationResult
 from magna_common.ros_names import WORLD_MARKERS
 from magna_common.simulation_bag import MARKERS, SM_KINDS, UAL_KINDS, BagError, read_simulation_bag
+from magna_common.storage_tree import BAG_FILE, MISSION_FILE, RESULT_FILE, WORLD_FILE
 from magna_viz.recorded_world import RecordedWorld, world_from_markers, world_from_record
 from magna_viz.timeline import StatusEvent, Timeline, build_timeline
 
-BAG_NAME = "simulation.bag"
-MISSION_NAME = "mission.json"
-WORLD_NAME = "world.json"
-RESULT_NAME = "result.json"
 CSV_PATTERN = re.compile(r"uav_(\d+)\.csv")
 DEFAULT_COLORS = ((0.12, 0.47, 0.71), (1.0, 0.5, 0.05), (0.17, 0.63, 0.17), (0.84, 0.15, 0.16),
                   (0.58, 0.4, 0.74), (0.55, 0.34, 0.29), (0.89, 0.47, 0.76), (0.5, 0.5, 0.5))
@@ -131,26 +130,13 @@ class UavRecord:
         return self.color[:3]
 
 
-@dataclass(frozen=True)
-class RunResult:
-    """result.json, the fields the plots and the report show."""
-
-    success: bool | None
-    outcome: str
-    message: str
-    sim_duration: float
-    collisions: int | None
-    hyperparameters: dict
-    raw: dict
-
-
 @dataclass
 class Recording:
     sim_dir: Path
     uavs: dict[int, UavRecord]  # by id, sorted
     world: RecordedWorld
     timeline: Timeline | None  # None without a bag
-    result: RunResult | None
+    result: SimulationResult | None
     bag: Path | None  # None when missing or unreadable
     csvs: dict[int, Path]
     start: float  # first and last simulated time of any data
@@ -159,10 +145,10 @@ class Recording:
 
     @property
     def title(self) -> str:
-        h = self.result.hyperparameters if self.result else {}
-        if h.get("mission"):
-            return (f"{h.get('mission')}/{h.get('submission')} in {h.get('world')}/{h.get('subworld')}, "
-                    f"simulation {h.get('n_simulation', '?')}")
+        h = self.result.hyperparameters if self.result else None
+        if h is not None and h.mission:
+            return (f"{h.mission}/{h.submission} in {h.world}/{h.subworld}, "
+                    f"simulation {'?' if h.n_simulation is None else h.n_simulation}")
         return self.sim_dir.name
 
 
@@ -174,10 +160,10 @@ def load_recording(sim_dir: str | Path) -> Recording:
     if not sim_dir.is_dir():
         raise RecordingError(f"{sim_dir}: no such simulation folder; give a .../dataset_N/simulation_M folder")
     notes: list[str] = []
-    bag_file = sim_dir / BAG_NAME
+    bag_file = sim_dir / BAG_FILE
     csvs = {int(m.group(1)): p for p in sorted(sim_dir.iterdir()) if (m := CSV_PATTERN.fullmatch(p.name))}
     if not bag_file.is_file() and not csvs:
-        raise RecordingError(f"{sim_dir}: neither {BAG_NAME} nor any uav_<id>.csv: nothing to plot; fly the "
+        raise RecordingError(f"{sim_dir}: neither {BAG_FILE} nor any uav_<id>.csv: nothing to plot; fly the "
                              "simulation again without --no-bag / --skip-save (magna run)")
     bag = None
     if bag_file.is_file():
@@ -187,10 +173,10 @@ def load_recording(sim_dir: str | Path) -> Recording:
             if not csvs:
                 raise RecordingError(f"{bag_file}: cannot read the bag ({err.reason}) and there are no uav_<id>.csv: "
                                      "nothing to plot; fly the simulation again") from None
-            notes.append(f"{BAG_NAME} cannot be read ({err.reason}): no state-machine timeline, paths, goals or "
+            notes.append(f"{BAG_FILE} cannot be read ({err.reason}): no state-machine timeline, paths, goals or "
                          "latency; trajectories from the CSVs")
     else:
-        notes.append(f"{BAG_NAME} missing (flown with --no-bag?): no state-machine timeline, paths, goals or "
+        notes.append(f"{BAG_FILE} missing (flown with --no-bag?): no state-machine timeline, paths, goals or "
                      "latency; trajectories from the CSVs")
     if not csvs:
         notes.append("no uav_<id>.csv (flown with --skip-save?)")
@@ -202,7 +188,7 @@ def load_recording(sim_dir: str | Path) -> Recording:
         except ValueError as err:
             notes.append(f"{err}: not used")
     if bag is None and not frames:
-        raise RecordingError(f"{sim_dir}: no readable {BAG_NAME} and no usable uav_<id>.csv ({'; '.join(notes)}): "
+        raise RecordingError(f"{sim_dir}: no readable {BAG_FILE} and no usable uav_<id>.csv ({'; '.join(notes)}): "
                              "nothing to plot; fly the simulation again")
     ids = sorted(set(configs) | set(frames) | (set(bag.poses) | set(bag.velocities) if bag else set()))
     uavs = {uav: _uav_record(uav, k, configs.get(uav), frames.get(uav), csvs.get(uav), bag)
@@ -221,7 +207,7 @@ def load_recording(sim_dir: str | Path) -> Recording:
     if bag is not None:
         timeline = build_timeline(bag.structures.values(), bag.statuses, end, set(uavs))
         if not timeline.intervals:
-            notes.append(f"{BAG_NAME} has no state-machine status messages: the timeline is empty")
+            notes.append(f"{BAG_FILE} has no state-machine status messages: the timeline is empty")
     return Recording(sim_dir, uavs, world, timeline, _result(sim_dir, notes), bag_file if bag else None, csvs,
                      start, end, notes)
 
@@ -229,9 +215,9 @@ def load_recording(sim_dir: str | Path) -> Recording:
 def _mission_configs(sim_dir: Path, notes: list[str]) -> dict:
     from magna_uav.config import ConfigError, configs_from_mission_file
 
-    mission = sim_dir / MISSION_NAME
+    mission = sim_dir / MISSION_FILE
     if not mission.is_file():
-        notes.append(f"{MISSION_NAME} missing: UAV colours are made up, safety radii and max speeds unknown")
+        notes.append(f"{MISSION_FILE} missing: UAV colours are made up, safety radii and max speeds unknown")
         return {}
     try:
         return {c.id: c for c in configs_from_mission_file(mission)}
@@ -240,28 +226,16 @@ def _mission_configs(sim_dir: Path, notes: list[str]) -> dict:
         return {}
 
 
-def _result(sim_dir: Path, notes: list[str]) -> RunResult | None:
-    path = sim_dir / RESULT_NAME
+def _result(sim_dir: Path, notes: list[str]) -> SimulationResult | None:
     try:
-        raw = json.loads(path.read_text())
-    except FileNotFoundError:
-        notes.append(f"{RESULT_NAME} missing: the batch's verdict is unknown")
+        return SimulationResult.read(sim_dir / RESULT_FILE)
+    except RecordError as err:
+        notes.append(f"{RESULT_FILE} missing: the batch's verdict is unknown" if err.missing else str(err))
         return None
-    except (OSError, json.JSONDecodeError) as err:
-        notes.append(f"{path}: cannot read it ({err})")
-        return None
-    if not isinstance(raw, dict):
-        notes.append(f"{path}: not a JSON object")
-        return None
-    collisions = raw.get("collisions")
-    return RunResult(raw.get("success"), str(raw.get("outcome", "")), str(raw.get("message", "")),
-                     float(raw.get("sim_duration") or math.nan),
-                     int(collisions) if isinstance(collisions, int | float) else None,
-                     dict(raw.get("hyperparameters") or {}), raw)
 
 
 def _world(sim_dir: Path, bag, notes: list[str]) -> RecordedWorld:
-    record = sim_dir / WORLD_NAME
+    record = sim_dir / WORLD_FILE
     if record.is_file():
         try:
             world = world_from_record(record)
@@ -270,7 +244,7 @@ def _world(sim_dir: Path, bag, notes: list[str]) -> RecordedWorld:
         except ValueError as err:
             notes.append(str(err))
     else:
-        notes.append(f"{WORLD_NAME} missing")
+        notes.append(f"{WORLD_FILE} missing")
     if bag is not None and bag.markers:
         notes.append("world drawn as the obstacles' bounding spheres from the bag's markers")
         return world_from_markers([m for _, m in bag.markers])
@@ -376,7 +350,7 @@ def _uav_record(uav: int, k: int, config, frame, csv: Path | None, bag: _BagData
         radius, max_speed = float(config.safety_radius), float(config.max_speed)
     else:
         color, model, radius, max_speed = (*DEFAULT_COLORS[k % len(DEFAULT_COLORS)], 1.0), "?", math.nan, math.nan
-    bag_name = BAG_NAME
+    bag_name = BAG_FILE
 
     def pick(kind: str, prefix: str) -> Samples:
         items = getattr(bag, kind).get(uav, []) if bag is not None else []
@@ -408,7 +382,7 @@ def _fill_proximity(uavs: dict[int, UavRecord], frames: dict, csvs: dict[int, Pa
         elif uav in frames:
             record.proximity = _csv_proximity(frames[uav], uav, radii, csvs[uav].name)
     if bag is not None and not markers and any(u.proximity is not None for u in uavs.values()):
-        notes.append(f"{BAG_NAME} has no {WORLD_MARKERS}: obstacle distances from the CSVs only")
+        notes.append(f"{BAG_FILE} has no {WORLD_MARKERS}: obstacle distances from the CSVs only")
 
 
 def _csv_proximity(frame, uav: int, radii: dict[int, float], source: str) -> Proximity:
@@ -475,8 +449,7 @@ def _bag_proximity(record: UavRecord, uavs: dict[int, UavRecord], epochs: list) 
     own = record.safety_radius
     with np.errstate(invalid="ignore"):  # NaN compares False: no contact where nothing is known
         return Proximity(t, distance, threshold, obstacle, own, distance < threshold, obstacle < own,
-                         BAG_NAME)
+                         BAG_FILE)
 
 
-__all__ = ["BAG_NAME", "PathRecord", "Proximity", "Recording", "RecordingError", "RunResult", "Samples",
-           "UavRecord", "load_recording"]
+__all__ = ["PathRecord", "Proximity", "Recording", "RecordingError", "Samples", "UavRecord", "load_recording"]

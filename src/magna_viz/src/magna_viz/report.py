@@ -8,19 +8,19 @@ are no plots.
 """
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from magna_common.records import Hyperparameters, RecordError, SimulationResult
+from magna_common.storage_tree import MISSION_FILE, RESULT_FILE
 from magna_viz import pages
 
 REPORT_FILE = "report.html"
 PLOTS_DIR = "plots"
 MISSION_PICTURE = "mission_taken.png"
-RESULT_FILE = "result.json"
 
 # The plots in the order the page shows them, with their captions.
 CAPTIONS = {
@@ -45,18 +45,15 @@ class Report:
     notes: list[str] = field(default_factory=list)  # what is missing from the page, and why
 
 
-def read_result(sim_dir: Path) -> dict:
+def read_result(sim_dir: Path) -> SimulationResult:
     path = Path(sim_dir) / RESULT_FILE
     try:
-        result = json.loads(path.read_text())
-    except FileNotFoundError:
-        raise ReportError(f"{path}: no such file; a simulation folder of `magna run` holds one "
-                          "(give the folder simulation_<m>, or its dataset_<n>)") from None
-    except (OSError, ValueError) as error:
-        raise ReportError(f"{path}: cannot read it: {error}") from None
-    if not isinstance(result, dict):
-        raise ReportError(f"{path}: expected a JSON object")
-    return result
+        return SimulationResult.read(path)
+    except RecordError as error:
+        if error.missing:
+            raise ReportError(f"{path}: no such file; a simulation folder of `magna run` holds one "
+                              "(give the folder simulation_<m>, or its dataset_<n>)") from None
+        raise ReportError(str(error)) from None
 
 
 def write_report(sim_dir: Path, overwrite: bool = False) -> Report:
@@ -99,7 +96,7 @@ def _mission_picture(sim_dir: Path, timeline, notes: list[str]) -> Path | None:
     from magna_sm.draw import DrawError, draw_structures, structures_of
 
     try:
-        loaded = load_mission(sim_dir / "mission.json")
+        loaded = load_mission(sim_dir / MISSION_FILE)
         machine = build_machine(loaded.mission, InertFactory(), loaded.plan)
         ran = {interval.path for interval in timeline.intervals}
         return draw_structures(structures_of(machine), sim_dir / PLOTS_DIR / MISSION_PICTURE, ran)
@@ -110,12 +107,12 @@ def _mission_picture(sim_dir: Path, timeline, notes: list[str]) -> Path | None:
 
 # --- the page ------------------------------------------------------------------------------------------------------
 
-def render(sim_dir: Path, result: dict, recording, plots: dict[str, Path], mission_png: Path | None,
+def render(sim_dir: Path, result: SimulationResult, recording, plots: dict[str, Path], mission_png: Path | None,
            notes: list[str]) -> str:
-    hyper = result.get("hyperparameters") or {}
-    where = f"{hyper.get('world', '?')}/{hyper.get('subworld', '?')}"
-    what = f"{hyper.get('mission', '?')}/{hyper.get('submission', '?')}"
-    title = f"Simulation {result.get('id', '?')}: {what} in {where}"
+    hyper = result.hyperparameters or Hyperparameters()
+    where = f"{hyper.world or '?'}/{hyper.subworld or '?'}"
+    what = f"{hyper.mission or '?'}/{hyper.submission or '?'}"
+    title = f"Simulation {_or_blank(result.id) or '?'}: {what} in {where}"
     parts = [f"<h1>{pages.escape(title)}</h1>",
              f'<p class="sub">{pages.escape(str(sim_dir))}</p>',
              "<h2>Result</h2>", _result_table(result)]
@@ -135,23 +132,27 @@ def render(sim_dir: Path, result: dict, recording, plots: dict[str, Path], missi
     return pages.page(title, "\n".join(parts))
 
 
-def _result_table(result: dict) -> str:
-    success = bool(result.get("success"))
-    verdict = '<span class="ok">success</span>' if success else '<span class="bad">failure</span>'
-    duration, wall = float(result.get("sim_duration") or 0.0), float(result.get("wall_time") or 0.0)
+def _result_table(result: SimulationResult) -> str:
+    verdict = '<span class="ok">success</span>' if result.success else '<span class="bad">failure</span>'
+    duration, wall = result.sim_duration, result.wall_time
     rows = [
-        ("result", f"{verdict}: {pages.escape(result.get('outcome', ''))}"),
-        ("message", pages.escape(result.get("message", ""))),
+        ("result", f"{verdict}: {pages.escape(result.outcome)}"),
+        ("message", pages.escape(result.message)),
         ("simulated time", f"{duration:.1f} s"),
         ("wall time", f"{wall:.1f} s" + (f" ({duration / wall:.1f}x real time)" if wall > 0 else "")),
-        ("collisions", pages.escape(result.get("collisions", 0))),
-        ("ended by", pages.escape(result.get("termination", ""))),
-        ("seed", pages.escape(result.get("seed", ""))),
-        ("world file", pages.escape(result.get("world_file", ""))),
-        ("mission file", pages.escape(result.get("mission_file", ""))),
-        ("started", pages.escape(result.get("started_at", ""))),
+        ("collisions", pages.escape(result.collisions or 0)),
+        ("ended by", pages.escape(result.termination)),
+        ("seed", pages.escape(_or_blank(result.seed))),
+        ("world file", pages.escape(_or_blank(result.world_file))),
+        ("mission file", pages.escape(_or_blank(result.mission_file))),
+        ("started", pages.escape(result.started_at)),
     ]
     return pages.table(None, [(f"<b>{name}</b>", value) for name, value in rows])
+
+
+def _or_blank(value) -> str:
+    """A field of the result as the page shows it: "" when the file did not say."""
+    return "" if value is None else str(value)
 
 
 def uav_table(recording) -> str:

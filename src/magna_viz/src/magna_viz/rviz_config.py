@@ -16,6 +16,8 @@ from pathlib import Path
 import yaml
 
 from magna_common.files import write_atomically
+from magna_common.records import RecordedGeometry, RecordedObstacle, RecordError, SimulationResult, WorldRecord
+from magna_common.storage_tree import RESULT_FILE
 
 RVIZ_DIR = Path(__file__).resolve().parents[2] / "rviz"
 DEFAULT_FAMILY = "gym"
@@ -57,15 +59,12 @@ def family_of(world: str) -> Family | None:
 def world_of_sim_dir(sim_dir: Path) -> str:
     """The world of a simulation folder: result.json's hyperparameters, else the storage path
     <root>/Simulations/<world>/...; "" when neither says."""
-    import json
-
     try:
-        result = json.loads((sim_dir / "result.json").read_text())
-        world = result.get("hyperparameters", {}).get("world")
-        if isinstance(world, str) and world:
-            return world
-    except (OSError, ValueError, AttributeError):
-        pass
+        hyperparameters = SimulationResult.read(sim_dir / RESULT_FILE).hyperparameters
+    except RecordError:
+        hyperparameters = None
+    if hyperparameters is not None and hyperparameters.world:
+        return hyperparameters.world
     parts = sim_dir.resolve().parts
     if "Simulations" in parts:
         index = len(parts) - 1 - parts[::-1].index("Simulations")
@@ -113,51 +112,35 @@ def clip(box: Box | None, limits: Box | None) -> Box | None:
     return out if all(lo <= hi for lo, hi in out) else box  # type: ignore[return-value]
 
 
-def world_boxes(world: dict) -> tuple[Box | None, Box | None]:
-    """(boundaries, content) of a world: a recorded world.json ({"parts": {id: record}}) or a world
-    file ({"scenario": {"world_boundaries": ...}}). Content: the geometries and obstacles, roughly."""
+def world_boxes(world: WorldRecord) -> tuple[Box | None, Box | None]:
+    """(boundaries, content) of a recorded world. Content: the geometries and obstacles, roughly."""
     boundaries: Box | None = None
     content: Box | None = None
-    parts = list(world.get("parts", {}).values()) if isinstance(world.get("parts"), dict) else []
-    if "scenario" in world:
-        parts.append(world["scenario"])
-    for part in parts:
-        bounds = _as_box(part.get("world_boundaries"))
-        boundaries = union(boundaries, bounds)
-        for item in [*part.get("geometries", []), *part.get("obstacles", [])]:
+    for part in world.parts.values():
+        boundaries = union(boundaries, _as_box(part.world_boundaries))
+        for item in [*part.geometries, *part.obstacles]:
             content = union(content, _item_box(item))
     return boundaries, content
 
 
-def _as_box(value) -> Box | None:
-    try:
-        box = tuple((float(lo), float(hi)) for lo, hi in value)
-    except (TypeError, ValueError):
+def _as_box(value: tuple[tuple[float, float], ...] | None) -> Box | None:
+    if value is None or not all(lo <= hi for lo, hi in value):
         return None
-    return box if len(box) == 3 and all(lo <= hi for lo, hi in box) else None  # type: ignore[return-value]
+    return value  # type: ignore[return-value]
 
 
-def _item_box(item: dict) -> Box | None:
+def _item_box(item: RecordedGeometry | RecordedObstacle) -> Box | None:
     """A geometry or obstacle of a recorded world: its position and a radius from its sizes."""
-    try:
-        x, y, z = (float(v) for v in item["position"])
-    except (KeyError, TypeError, ValueError):
+    if len(item.position) != 3:
         return None
-    polygon = item.get("polygon") or []
-    if polygon:
-        pts = [(x + float(p[0]), y + float(p[1]), z + float(p[2]) if len(p) > 2 else z) for p in polygon]
-        height = _numbers(item.get("dimensions"))[:1] or [0.0]
-        pts += [(px, py, pz + height[0]) for px, py, pz in pts]
+    x, y, z = item.position
+    if item.polygon:
+        pts = [(x + p[0], y + p[1], z + p[2] if len(p) > 2 else z) for p in item.polygon]
+        height = item.dimensions[0] if item.dimensions else 0.0
+        pts += [(px, py, pz + height) for px, py, pz in pts]
         return box_of_points(pts)
-    sizes = _numbers(item.get("dimensions"))
-    radius = max(sizes) / 2.0 if sizes else 0.0
+    radius = max(item.dimensions) / 2.0 if item.dimensions else 0.0
     return ((x - radius, x + radius), (y - radius, y + radius), (z - radius, z + radius))
-
-
-def _numbers(value) -> list[float]:
-    if not isinstance(value, (list, tuple)):
-        return []
-    return [float(v) for v in value if isinstance(v, (int, float)) and not isinstance(v, bool)]
 
 
 def pad(box: Box, fraction: float = 0.05, minimum: float = 4.0) -> Box:

@@ -13,6 +13,7 @@ import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from magna_common.records import RecordError, WorldRecord
 from magna_common.simulation_bag import BagError, read_simulation_bag
 from magna_common.storage_tree import BAG_FILE, MISSION_FILE, WORLD_FILE
 from magna_viz import rviz_config as rc
@@ -119,23 +120,20 @@ def read_bag(bag: Path) -> BagSummary:
                       rc.box_of_points(points))
 
 
-def read_world(sim_dir: Path) -> dict | None:
-    import json
-
-    path = sim_dir / WORLD_FILE
+def read_world(sim_dir: Path) -> WorldRecord | None:
+    """The simulation's world.json; None when it is missing or unreadable (the camera then fits the flights)."""
     try:
-        data = json.loads(path.read_text())
-    except (OSError, ValueError):
+        return WorldRecord.read(sim_dir / WORLD_FILE)
+    except RecordError:
         return None
-    return data if isinstance(data, dict) else None
 
 
-def view_box(world: dict | None, flights: rc.Box | None, fit: str) -> rc.Box | None:
+def view_box(world: WorldRecord | None, flights: rc.Box | None, fit: str) -> rc.Box | None:
     """What the camera shows: the world's content inside its boundaries and the flights ('world'), or the
     flights only ('uavs'), padded; None for 'none' or when nothing is known."""
     if fit == "none":
         return None
-    boundaries, content = rc.world_boxes(world) if world else (None, None)
+    boundaries, content = rc.world_boxes(world) if world is not None else (None, None)
     if fit == "uavs" and flights is not None:
         return rc.pad(flights, 0.15)
     inside = rc.clip(content, boundaries) if content is not None else None
