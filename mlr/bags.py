@@ -37,14 +37,13 @@ Depth images are not bagged: `depth_frames` stays None.
 from __future__ import annotations
 
 import math
-from collections import defaultdict
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import numpy as np
 
 from magna_common import ros_names
-from magna_common.simulation_bag import BagError, read_simulation_bag
+from magna_common.simulation_bag import BagError, BagMessage, read_simulation_bag
 from magna_common.storage_tree import BAG_FILE, MISSION_FILE
 from magna_uav.config import ConfigError, configs_from_mission_file
 from magna_uav.recorder import DEFAULT_OBSTACLES
@@ -125,23 +124,26 @@ def steps_from_bag(sim_dir: str | Path, max_speeds: Mapping[int, float],
                        radii, ids) for uav in ids]
 
 
+def _series(messages: list[BagMessage], vector: Callable) -> _Series:
+    series = _Series()
+    for message in messages:
+        series.add(message.stamp, _xyz(vector(message.msg)))
+    series.freeze()
+    return series
+
+
 def _read(bag: Path):
     try:
         read = read_simulation_bag(bag, ("navigation", "pose", "velocity", "markers"))
     except BagError as err:
         raise PicklerError(f"{bag}: cannot read the bag: {err.reason}") from None
-    navigation: dict[int, dict[int, tuple]] = defaultdict(dict)  # UAV -> row -> (stamp, message)
-    for step in read.of("navigation"):
-        # keyed by row: a replayed step is the same row (two steps may share a stamp)
-        navigation[step.owner][int(step.msg.row)] = (step.stamp, step.msg)
-    poses: dict[int, _Series] = defaultdict(_Series)
-    for pose in read.of("pose"):
-        poses[pose.owner].add(pose.stamp, _xyz(pose.msg.pose.position))
-    velocities: dict[int, _Series] = defaultdict(_Series)
-    for velocity in read.of("velocity"):
-        velocities[velocity.owner].add(velocity.stamp, _xyz(velocity.msg.twist.linear))
-    for series in (*poses.values(), *velocities.values()):
-        series.freeze()
+    # UAV -> row -> (stamp, message), keyed by row: a replayed step is the same row (two steps may share a stamp)
+    navigation: dict[int, dict[int, tuple]] = {
+        uav: {int(step.msg.row): (step.stamp, step.msg) for step in steps}
+        for uav, steps in read.by_owner("navigation").items()}
+    poses = {uav: _series(found, lambda msg: msg.pose.position) for uav, found in read.by_owner("pose").items()}
+    velocities = {uav: _series(found, lambda msg: msg.twist.linear)
+                  for uav, found in read.by_owner("velocity").items()}
     # the markers count from when the bag got them (a MarkerArray has no stamp of its own)
     markers = sorted(((m.log_time, m.msg) for m in read.of("markers")), key=lambda item: item[0])
     ordered = {uav: [steps[row] for row in sorted(steps)] for uav, steps in navigation.items()}

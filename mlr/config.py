@@ -15,7 +15,7 @@ import math
 import re
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
-from typing import Literal, NoReturn, get_args
+from typing import Any, Literal, NoReturn, get_args
 
 from magna_common.storage_tree import StorageError, check_component
 from mlr.pickler import SOURCES, Selection, Source, Teacher
@@ -99,7 +99,7 @@ class RunConfig:
     @property
     def teacher(self) -> Teacher:
         return Teacher(self.role, self.algorithm, self.n_neighbors, self.n_obstacles, self.neighbor_dist, self.fvi,
-                       tuple(self.image_size) if self.model == "cnn" else None)
+                       (self.image_size[0], self.image_size[1]) if self.model == "cnn" else None)
 
     def as_dict(self) -> dict:
         return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
@@ -107,7 +107,8 @@ class RunConfig:
     @classmethod
     def from_dict(cls, values: dict) -> RunConfig:
         """The inverse of `as_dict` (a config saved in a checkpoint or result.json)."""
-        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in values.items()})
+        fields_: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
+        return cls(**fields_)
 
 
 @dataclass(frozen=True)
