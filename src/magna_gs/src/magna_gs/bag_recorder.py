@@ -26,22 +26,27 @@ import rosgraph
 import rosgraph.names
 import roslib.packages
 
+from magna_common import ros_names as names
 from magna_common.processes import TimeoutTransport, end_process_group
 
 WATCHER = "/magna_bag_watcher"  # the caller id of our master and node queries
 # The UAL pose and velocity and the managers' navigation steps let mlr rebuild every recorded
 # control step from the bag (mlr.bags), e.g. for flights whose CSVs are lost or never written.
 # A hil or real UAV's bridge says there when its MAVLink link is lost and found again.
-WORLD_TOPICS = ("/tf", "/tf_static", "/magna/world/markers", "/magna/sm/mission/structure",
-                "/magna/sm/mission/status", "/magna/gs/critical_event", "/magna/utm/flight_plans")
-UAV_TOPICS = ("/uav_{id}/ual/pose", "/uav_{id}/ual/velocity", "/magna/uav_{id}/navigation",
-              "/magna/uav_{id}/path/raw", "/magna/uav_{id}/path/smoothed", "/magna/uav_{id}/goal",
-              "/magna/utm/flight_plan/{id}", "/uav_{id}/ual_mavlink/link")
+WORLD_TOPICS = ("/tf", "/tf_static", names.WORLD_MARKERS, names.sm_topic("mission", "structure"),
+                names.sm_topic("mission", "status"), names.GS_CRITICAL_EVENT, names.UTM_FLIGHT_PLANS)
+
+
+def uav_topics(uav_id: int) -> list[str]:
+    """What simulation.bag holds of one UAV."""
+    return [names.ual(uav_id, "pose"), names.ual(uav_id, "velocity"),
+            *(names.manager(uav_id, topic) for topic in ("navigation", "path/raw", "path/smoothed", "goal")),
+            names.utm_flight_plan(uav_id), names.mavlink_link(uav_id)]
 
 
 def mission_topics(uav_ids: Iterable[int]) -> list[str]:
     """What simulation.bag holds for a mission of these UAVs."""
-    return [*WORLD_TOPICS, *(topic.format(id=i) for i in uav_ids for topic in UAV_TOPICS)]
+    return [*WORLD_TOPICS, *(topic for i in uav_ids for topic in uav_topics(i))]
 
 
 class BagRecorder:

@@ -19,6 +19,7 @@ from geometry_msgs.msg import Vector3
 from magna_msgs import msg as actions
 from magna_msgs.srv import GetFreeSpacePoseSet
 
+from magna_common import ros_names as names
 from magna_sm import State
 from magna_sm.simple_action import SimpleActionClient
 from magna_uav.commanders import pose_stamped
@@ -36,8 +37,8 @@ def world_poses(definition: list, timeout: float = 30.0) -> list[tuple[np.ndarra
     """The (position, quaternion xyzw) poses of a pose definition [volume, geometry, kind, arg], from the
     world node; ValueError with the world node's reason when it does not resolve."""
     request = [item if isinstance(item, str) else json.dumps(item) for item in definition]
-    rospy.wait_for_service("/magna/world/get_fspset", timeout=timeout)
-    answer = rospy.ServiceProxy("/magna/world/get_fspset", GetFreeSpacePoseSet)(definition=request)
+    rospy.wait_for_service(names.WORLD_GET_FSPSET, timeout=timeout)
+    answer = rospy.ServiceProxy(names.WORLD_GET_FSPSET, GetFreeSpacePoseSet)(definition=request)
     if not answer.success:
         raise ValueError(f"pose definition {definition}: {answer.message}")
     return [(np.array([p.position.x, p.position.y, p.position.z]),
@@ -243,7 +244,7 @@ class ActionClients:
             key = (uav_id, action)
             if key not in self._clients:
                 spec = getattr(actions, ACTION_TYPES[action] + "Action")
-                client = SimpleActionClient(f"/magna/uav_{uav_id}/{action}", spec)
+                client = SimpleActionClient(names.manager(uav_id, action), spec)
                 # Wall time: a manager takes seconds to start, and under rtf max a minute of
                 # simulated time passes in a few of them.
                 deadline = time.monotonic() + self.wait

@@ -22,6 +22,7 @@ import rospy
 from std_msgs.msg import String
 from uav_abstraction_layer.msg import State as UalState
 
+from magna_common import ros_names as names
 from magna_common.ports import free_udp_ports
 from magna_common.processes import end_process_group
 from magna_mavlink.fleet import Fleet, FleetUav
@@ -29,7 +30,6 @@ from magna_sim.mavlink_telemetry import PX4_SITL_HOME
 
 CONNECT_TIMEOUT = 15.0  # wall s a bridge has to hear its vehicle (ual_mavlink --connect-timeout)
 READY_MARGIN = 15.0  # wall s more for the node to start and the vehicle to report a valid position
-LINK_TOPIC = "/uav_{id}/ual_mavlink/link"
 
 
 class MavlinkUavError(RuntimeError):
@@ -84,7 +84,7 @@ class MavlinkUavs:
         """Start the bridge of `uav_id` (after `spawn_stand_in(local_port, remote_port)` for a stand-in)
         and wait until its UAL reports a valid state; MavlinkUavError when the vehicle is not there."""
         if self.origin is None:
-            self.origin, where = resolve_origin(self.fleet, rospy.get_param("/magna/world/origin_geo", None))
+            self.origin, where = resolve_origin(self.fleet, rospy.get_param(names.WORLD_ORIGIN_GEO, None))
             rospy.loginfo(f"MAVLink UAVs: the map origin is {self.origin} ({where})")
         uav = self.fleet.uavs[uav_id]
         url = uav.url
@@ -98,9 +98,9 @@ class MavlinkUavs:
                      "--to", f"127.0.0.1:{local}", *uav.link_faults.proxy_arguments()],
                     start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
                 url = f"udpout:127.0.0.1:{listen}"
-        self._subscribers.append(rospy.Subscriber(f"/uav_{uav_id}/ual/state", UalState, self._on_state, uav_id,
+        self._subscribers.append(rospy.Subscriber(names.ual(uav_id, "state"), UalState, self._on_state, uav_id,
                                                   queue_size=1))
-        self._subscribers.append(rospy.Subscriber(LINK_TOPIC.format(id=uav_id), String, self._on_link, uav_id,
+        self._subscribers.append(rospy.Subscriber(names.mavlink_link(uav_id), String, self._on_link, uav_id,
                                                   queue_size=10))
         # Its errors go to an unnamed file, not a pipe: a pipe nobody reads would block a talkative node.
         errors = tempfile.TemporaryFile("w+")

@@ -24,11 +24,11 @@ from collections.abc import Iterator
 import rospy
 from std_srvs.srv import SetBool
 
-PAUSE_SERVICE = "/magna/sim/pause"
+from magna_common import ros_names as names
 
 
 class SimulationPause:
-    def __init__(self, service: str = PAUSE_SERVICE, wait: float = 30.0):
+    def __init__(self, service: str = names.SIM_PAUSE, wait: float = 30.0):
         self.service, self.wait = service, wait
         self._proxy = None
         self._missing = False

@@ -16,8 +16,7 @@ import numpy as np
 import rospy
 from std_msgs.msg import Float64, String
 
-PLANS_TOPIC = "/magna/utm/flight_plans"
-CHANGE_TOPIC = "/magna/uav_{}/utm_new_flightplan"
+from magna_common import ros_names as names
 
 
 class UtmLink:
@@ -28,14 +27,15 @@ class UtmLink:
         self.last_paths: dict[int, np.ndarray] = {}  # what each UAV was last sent to fly
         self.warned: set[int] = set()
         self.heard = threading.Event()
-        self.notify = {i: rospy.Publisher(CHANGE_TOPIC.format(i), Float64, queue_size=1, latch=True) for i in ids}
-        self.subscriber = rospy.Subscriber(PLANS_TOPIC, String, self._on_plans, queue_size=10)
+        self.notify = {i: rospy.Publisher(names.manager(i, "utm_new_flightplan"), Float64, queue_size=1, latch=True)
+                       for i in ids}
+        self.subscriber = rospy.Subscriber(names.UTM_FLIGHT_PLANS, String, self._on_plans, queue_size=10)
 
     def _on_plans(self, msg: String) -> None:
         try:
             plans = json.loads(msg.data)["plans"]
         except (ValueError, KeyError, TypeError) as error:
-            rospy.logerr(f"UTM: unreadable flight plans on {PLANS_TOPIC}: {error}")
+            rospy.logerr(f"UTM: unreadable flight plans on {names.UTM_FLIGHT_PLANS}: {error}")
             return
         changed = []
         with self.lock:
@@ -62,7 +62,7 @@ class UtmLink:
     def path_for(self, uav_id: int) -> np.ndarray:
         """The waypoints of the UAV's current plan, for a follow_path "from utm"; ValueError when there is none."""
         if not self.heard.wait(self.wait):
-            raise ValueError(f"follow_path from utm: nothing from the UTM node on {PLANS_TOPIC} within "
+            raise ValueError(f"follow_path from utm: nothing from the UTM node on {names.UTM_FLIGHT_PLANS} within "
                              f"{self.wait:g} s; did it start (rosrun magna_gs utm)? See its log")
         with self.lock:
             plan, last = self.plans.get(uav_id), self.last_paths.get(uav_id)

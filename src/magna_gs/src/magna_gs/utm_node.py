@@ -17,6 +17,7 @@ from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Path as PathMsg
 from std_msgs.msg import String
 
+from magna_common import ros_names as names
 from magna_gs.factory import POLL, world_poses
 from magna_gs.utm import FlightPlan, Utm, UtmPlanError, choose_plan
 
@@ -58,13 +59,13 @@ class UtmNode:
         self.positions: dict[int, np.ndarray] = {}
         self.dirty = True  # something changed since the last conflict check
         self.reported: set[tuple] = set()
-        self.plans_pub = rospy.Publisher("/magna/utm/flight_plans", String, queue_size=10, latch=True)
-        self.plan_pubs = {i: rospy.Publisher(f"/magna/utm/flight_plan/{i}", PathMsg, queue_size=1, latch=True)
+        self.plans_pub = rospy.Publisher(names.UTM_FLIGHT_PLANS, String, queue_size=10, latch=True)
+        self.plan_pubs = {i: rospy.Publisher(names.utm_flight_plan(i), PathMsg, queue_size=1, latch=True)
                           for i in ids}
         self.conflict_pubs: dict[int, rospy.Publisher] = {}
         for uav_id in ids:
-            rospy.Subscriber(f"/uav_{uav_id}/ual/pose", PoseStamped, self._on_pose, uav_id, queue_size=1)
-            rospy.Subscriber(f"/magna/uav_{uav_id}/path/raw", PathMsg, self._on_path, uav_id, queue_size=5)
+            rospy.Subscriber(names.ual(uav_id, "pose"), PoseStamped, self._on_pose, uav_id, queue_size=1)
+            rospy.Subscriber(names.manager(uav_id, "path/raw"), PathMsg, self._on_path, uav_id, queue_size=5)
 
     def _on_pose(self, msg, uav_id):
         p = msg.pose.position
@@ -110,7 +111,7 @@ class UtmNode:
                 self.reported.add(key)
                 rospy.logwarn(f"UTM conflict {n}: {conflict.describe()}")
             if n not in self.conflict_pubs:
-                self.conflict_pubs[n] = rospy.Publisher(f"/magna/utm/conflict_path/{n}", PathMsg, queue_size=1,
+                self.conflict_pubs[n] = rospy.Publisher(names.utm_conflict_path(n), PathMsg, queue_size=1,
                                                         latch=True)
             msg = PathMsg()
             msg.header.frame_id, msg.header.stamp = "map", rospy.Time.now()
