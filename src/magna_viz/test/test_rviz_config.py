@@ -8,9 +8,10 @@ import math
 import pytest
 
 from magna_common.records import WorldRecord
+from magna_common.ros_names import VIZ_SCENE
 from magna_viz import rviz_config as rc
 from magna_viz.replay.plan import view_box
-from magna_viz.scene import DEFAULT_TOPIC, NAMESPACES
+from magna_viz.scene import NAMESPACES
 
 CONFIGS = sorted(rc.RVIZ_DIR.glob("*.rviz"))
 
@@ -33,8 +34,8 @@ def test_a_configuration_shows_the_world_the_uavs_and_tf_in_map(path):
         by_class.setdefault(display["Class"], []).append(display)
     assert {"rviz/Grid", "rviz/TF", "rviz/MarkerArray"} <= set(by_class)
     topics = {d["Marker Topic"]: d for d in by_class["rviz/MarkerArray"]}
-    assert set(topics) == {"/magna/world/markers", DEFAULT_TOPIC}
-    assert set(topics[DEFAULT_TOPIC]["Namespaces"]) == set(NAMESPACES)
+    assert set(topics) == {"/magna/world/markers", VIZ_SCENE}
+    assert set(topics[VIZ_SCENE]["Namespaces"]) == set(NAMESPACES)
     assert all(d["Enabled"] for d in displays(config))
     assert manager["Views"]["Current"]["Class"] == "rviz/Orbit"
 

@@ -29,7 +29,6 @@ from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
 
 MAP_FRAME = "map"
-DEFAULT_TOPIC = "/magna/viz/scene"
 NAMESPACES = ("body", "heading", "safety", "label", "trail", "path_raw", "path_smoothed", "goal")
 TRAIL_STEP = 0.05  # m: a new trail point once the UAV is this far from the last one
 TIME_JUMP_BACK = 1.0  # s: a pose older than the last by more than this restarts the trails (bag looped)

@@ -23,8 +23,10 @@ from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Path as PathMsg
 from visualization_msgs.msg import MarkerArray
 
+from magna_common.records import Hyperparameters
+from magna_common.ros_names import HYPERPARAMETERS, VIZ_SCENE, WORLD_MARKERS, manager, ual
 from magna_viz.rviz_config import family_of
-from magna_viz.scene import DEFAULT_TOPIC, Scene, is_clear_only, styles_from_mission
+from magna_viz.scene import Scene, is_clear_only, styles_from_mission
 
 
 class SceneNode:
@@ -35,25 +37,25 @@ class SceneNode:
         styles = styles_from_mission(mission_file)
         scale = float(rospy.get_param("~scale", 0.0))
         if scale <= 0:
-            family = family_of(str(rospy.get_param("/magna/hyperparameters/world", "")))
+            family = family_of(Hyperparameters.from_param(rospy.get_param(HYPERPARAMETERS, None)).world)
             scale = family.marker_scale if family is not None else 1.0
         self.scene = Scene(styles, scale=scale, max_trail=int(rospy.get_param("~max_trail", 0)))
         self.rate = max(float(rospy.get_param("~rate", 10.0)), 0.5)
         self.lock = threading.Lock()
-        self.pub = rospy.Publisher(rospy.get_param("~topic", DEFAULT_TOPIC), MarkerArray, queue_size=2, latch=True)
+        self.pub = rospy.Publisher(rospy.get_param("~topic", VIZ_SCENE), MarkerArray, queue_size=2, latch=True)
         self.subscribers = []
         for style in styles:
             i = style.id
             self.subscribers += [
-                rospy.Subscriber(f"/uav_{i}/ual/pose", PoseStamped, self._pose, i, queue_size=50),
-                rospy.Subscriber(f"/magna/uav_{i}/path/raw", PathMsg, self._path, (i, False), queue_size=2),
-                rospy.Subscriber(f"/magna/uav_{i}/path/smoothed", PathMsg, self._path, (i, True), queue_size=2),
-                rospy.Subscriber(f"/magna/uav_{i}/goal", PoseStamped, self._goal, i, queue_size=10),
+                rospy.Subscriber(ual(i, "pose"), PoseStamped, self._pose, i, queue_size=50),
+                rospy.Subscriber(manager(i, "path/raw"), PathMsg, self._path, (i, False), queue_size=2),
+                rospy.Subscriber(manager(i, "path/smoothed"), PathMsg, self._path, (i, True), queue_size=2),
+                rospy.Subscriber(manager(i, "goal"), PoseStamped, self._goal, i, queue_size=10),
             ]
         world_in = rospy.get_param("~world_in", "")
         if world_in:
             self.keep_world = bool(rospy.get_param("~keep_world", True))
-            self.world_pub = rospy.Publisher(rospy.get_param("~world_out", "/magna/world/markers"), MarkerArray,
+            self.world_pub = rospy.Publisher(rospy.get_param("~world_out", WORLD_MARKERS), MarkerArray,
                                              queue_size=2, latch=True)
             self.subscribers.append(rospy.Subscriber(world_in, MarkerArray, self._world, queue_size=5))
         rospy.loginfo(f"scene: drawing UAVs {', '.join(s.name for s in styles)} of {mission_file} "
