@@ -28,6 +28,7 @@ import subprocess
 from collections.abc import Callable, Iterable
 from pathlib import Path
 
+from magna_common.files import write_bytes_atomically, write_text_atomically
 from magna_sm.container import Container, ContainerStructure
 
 ACTIVE_FILL = "#7fd17f"
@@ -152,7 +153,7 @@ def _first_line(text: str) -> str:
 
 
 def _write(output: Path, sources: Iterable[tuple[str, Callable[[], str]]]) -> tuple[Path, str]:
-    """Write `output` from the first (layout, source) graphviz draws, atomically.
+    """Write `output` from the first (layout, source) graphviz draws, atomically (replacing it).
 
     Returns the output and the layout drawn, `+newrank` appended when dot's other ranking drew it."""
     output = Path(output)
@@ -160,24 +161,17 @@ def _write(output: Path, sources: Iterable[tuple[str, Callable[[], str]]]) -> tu
     if fmt != "dot" and shutil.which("dot") is None:
         raise DrawError("graphviz's 'dot' is not installed: run 'make setup' (Debian package graphviz)")
     output.parent.mkdir(parents=True, exist_ok=True)
-    partial = output.with_name(f".{output.name}.partial")
     first_error = ""
-    try:
-        for layout, make_source in sources:
-            source = make_source()
-            if fmt == "dot":  # the source itself: nothing to lay out
-                partial.write_text(source)
-                partial.replace(output)
-                return output, layout
-            for ranking in RANKINGS:
-                done = subprocess.run(["dot", f"-T{fmt}", *ranking, "-o", str(partial)], input=source, text=True,
-                                      capture_output=True)
-                if done.returncode == 0 and partial.exists():
-                    partial.replace(output)
-                    return output, layout + ("+newrank" if ranking else "")
-                first_error = first_error or _first_line(done.stderr)
-    finally:
-        partial.unlink(missing_ok=True)
+    for layout, make_source in sources:
+        source = make_source()
+        if fmt == "dot":  # the source itself: nothing to lay out
+            return write_text_atomically(output, source, overwrite=True), layout
+        for ranking in RANKINGS:
+            done = subprocess.run(["dot", f"-T{fmt}", *ranking], input=source.encode(), capture_output=True)
+            if done.returncode == 0 and done.stdout:
+                drawn = layout + ("+newrank" if ranking else "")
+                return write_bytes_atomically(output, done.stdout, overwrite=True), drawn
+            first_error = first_error or _first_line(done.stderr.decode(errors="replace"))
     raise DrawError(f"graphviz could not draw {output}: {first_error}")
 
 

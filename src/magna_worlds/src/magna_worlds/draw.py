@@ -14,13 +14,11 @@
   the widest so flat worlds do not become a line.
 
 Drawing uses matplotlib's Agg canvas directly (no pyplot, no global backend), and
-the file is written atomically: a temporary file in the same folder, then renamed.
+the file is written atomically (magna_common.files).
 """
 from __future__ import annotations
 
 import math
-import os
-import secrets
 from pathlib import Path
 
 import numpy as np
@@ -32,6 +30,7 @@ from matplotlib.patches import Patch
 from mpl_toolkits.mplot3d import Axes3D  # noqa: F401  (registers the 3-D projection)
 from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
 
+from magna_common.files import write_atomically
 from magna_worlds.generate import Obstacle, PlacedGeometry, ResolvedWorld
 from magna_worlds.shapes import ShapeSpec, parse_shape, prism_mesh, torus_mesh
 from magna_worlds.transforms import Frame
@@ -278,23 +277,7 @@ def _exists(path: Path) -> FileExistsError:
 
 
 def _save(fig: Figure, path: Path, overwrite: bool) -> Path:
-    # Named by hand (not mkstemp) so the picture gets the usual permissions of a new file.
-    temporary = path.parent / f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp"
     try:
-        with open(temporary, "xb") as out:
-            fig.savefig(out, format="png")
-        if overwrite:
-            os.replace(temporary, path)
-        else:
-            try:
-                os.link(temporary, path)  # fails if the file appeared meanwhile: never overwrite by accident
-            except FileExistsError:
-                raise _exists(path) from None
-            except OSError:  # a filesystem without hard links
-                if path.exists():
-                    raise _exists(path) from None
-                os.replace(temporary, path)
-    finally:
-        if os.path.exists(temporary):
-            os.unlink(temporary)
-    return path
+        return write_atomically(path, lambda out: fig.savefig(out, format="png"), overwrite=overwrite, binary=True)
+    except FileExistsError:  # it appeared while drawing: never overwritten by accident
+        raise _exists(path) from None
