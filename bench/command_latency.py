@@ -325,12 +325,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 def check_args(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
     """Bad options end here, before anything starts (parser.error: status 2)."""
-    from magna_common.cli_vocabulary import OutputExists, check_output
-    from magna_master.batch import BatchError, parse_rtf
+    from magna_common.cli_vocabulary import OutputExists, check_output, parse_rtf
+    from magna_common.errors import UsageError
 
     try:
         args.rtf = parse_rtf(args.rtf)
-    except BatchError as error:
+    except UsageError as error:
         parser.error(str(error))
     if args.worker:
         return

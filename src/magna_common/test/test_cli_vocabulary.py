@@ -5,6 +5,7 @@ from pathlib import Path
 import pytest
 
 from magna_common import cli_vocabulary as vocabulary
+from magna_common.errors import UsageError
 
 
 def _parser():
@@ -57,3 +58,11 @@ def test_check_output_refuses_an_existing_file_without_force(tmp_path):
     with pytest.raises(vocabulary.OutputExists, match="pass --force"):
         vocabulary.check_output(target, force=False, what="picture")
     vocabulary.check_output(target, force=True)
+
+
+def test_rtf_values_are_max_or_a_positive_factor():
+    assert vocabulary.parse_rtf(" MAX ") == "max"
+    assert vocabulary.parse_rtf("10.0") == "10" and vocabulary.parse_rtf("0.5") == "0.5"
+    for bad in ("0", "-1", "fast", "nan", "inf"):
+        with pytest.raises(UsageError, match=f"--rtf '{bad}': give 'max'"):
+            vocabulary.parse_rtf(bad)

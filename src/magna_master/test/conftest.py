@@ -64,7 +64,7 @@ def leak_token(monkeypatch):
 
 @pytest.fixture
 def batch_inputs(corpus):
-    from magna_master.batch import resolve_inputs
+    from magna_gs.inputs import resolve_inputs
 
     return resolve_inputs(WORLD, MISSION, [corpus])
 
@@ -72,7 +72,7 @@ def batch_inputs(corpus):
 @pytest.fixture
 def make_config(batch_inputs, tmp_path):
     """BatchConfig with the stand-in, short budgets and a data root in tmp_path."""
-    from magna_master.batch import BatchConfig
+    from magna_master.batch_config import BatchConfig
 
     def make(mode="ok", n_iter=2, **overrides):
         command = overrides.pop("launch_command", None) or stand_in_command(

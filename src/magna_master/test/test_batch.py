@@ -8,8 +8,11 @@ from pathlib import Path
 import pytest
 
 from magna_common.processes import pid_alive
+from magna_common.storage_tree import existing_simulations
 from magna_master import storage
-from magna_master.batch import Batch, BatchConfig, format_summary, hyperparameters, launch_command, run_batch
+from magna_master.batch import Batch, run_batch
+from magna_master.batch_config import BatchConfig, hyperparameters, launch_command
+from magna_master.batch_summary import format_summary
 
 pytestmark = pytest.mark.ros
 
@@ -18,10 +21,15 @@ def stand_in_report(folder: Path) -> dict:
     return json.loads((folder / "stand_in.json").read_text())
 
 
+def summary_cells(dataset_dir: Path) -> list[dict[str, str]]:
+    """summary.csv as text cells, as a spreadsheet reads it."""
+    with open(dataset_dir / "summary.csv", newline="") as handle:
+        return list(csv.DictReader(handle))
+
+
 def all_pids(simulation) -> list[int]:
     """Every process a simulation is known to have had: supervisor, launch, the stand-in and its children."""
-    data = simulation.data
-    pids = [data["supervisor_pid"], data["launch_pid"]]
+    pids = [simulation.supervisor_pid, simulation.launch_pid]
     if simulation.directory is not None and (simulation.directory / "stand_in.json").is_file():
         report = stand_in_report(simulation.directory)
         pids += [report["pid"], *report["children"]]
@@ -123,7 +131,7 @@ def test_conflicts_append_overwrite_skip_save_and_abort(make_config, leak_token)
 
     appended = run_batch(make_config(n_iter=2, policy=storage.APPEND), progress=False, out=io.StringIO())
     assert [(s.id, s.seed) for s in appended.simulations] == [(3, 3), (4, 4)]
-    assert [r["id"] for r in storage.read_summary(dataset)] == ["1", "2", "3", "4"]
+    assert [r["id"] for r in summary_cells(dataset)] == ["1", "2", "3", "4"]
     for m in (1, 2):  # untouched
         assert (dataset / f"simulation_{m}" / "result.json").read_bytes() == before[
             str((dataset / f"simulation_{m}" / "result.json").relative_to(root))]
@@ -136,8 +144,8 @@ def test_conflicts_append_overwrite_skip_save_and_abort(make_config, leak_token)
     new_1 = json.loads((dataset / "simulation_1" / "result.json").read_text())
     assert new_1["started_at"] != old_1["started_at"] and new_1["outcome"] == "collision"
     assert (dataset / "simulation_2" / "result.json").read_bytes() == kept
-    assert storage.existing_simulations(dataset) == [1, 2, 3, 4]
-    rows = {r["id"]: r for r in storage.read_summary(dataset)}
+    assert existing_simulations(dataset) == [1, 2, 3, 4]
+    rows = {r["id"]: r for r in summary_cells(dataset)}
     assert list(rows) == ["1", "2", "3", "4"] and rows["1"]["outcome"] == "collision"
 
 
@@ -145,7 +153,7 @@ def test_a_ground_station_that_runs_out_of_time_is_stopped(make_config, leak_tok
     stoppable = run_batch(make_config("stoppable", n_iter=1, time_limit=1.0), progress=False, out=io.StringIO())
     result = stoppable.simulations[0]
     assert (result.termination, result.outcome, result.success) == ("time_limit", "preempted", False)
-    assert result.data["gs_stop_called"] and result.sim_duration == 3.0
+    assert result.gs_stop_called and result.sim_duration == 3.0
     assert stand_in_report(result.directory)["stopped"] is True
 
     hung = run_batch(make_config("hang", n_iter=1, time_limit=1.0, stop_grace=0.5, name="hung"), progress=False,
@@ -155,7 +163,7 @@ def test_a_ground_station_that_runs_out_of_time_is_stopped(make_config, leak_tok
     assert "is not served" in result.message and "did not call" in result.message
     for pid in all_pids(result):
         assert not pid_alive(pid)
-    row = storage.read_summary(hung.dataset_dir)[0]
+    row = summary_cells(hung.dataset_dir)[0]
     assert (row["success"], row["outcome"]) == ("False", "time_limit")
 
 
@@ -176,7 +184,7 @@ def test_a_crash_is_reported_and_the_batch_goes_on(make_config, leak_token):
     assert not result.success and "status 3" in result.message and "something broke" in result.message
     assert "launch.log" in result.message
     assert (result.directory / "logs" / "launch.log").read_text().strip() == "stand-in: something broke"
-    assert [r["outcome"] for r in storage.read_summary(batch.dataset_dir)] == ["crashed", "crashed"]
+    assert [r["outcome"] for r in summary_cells(batch.dataset_dir)] == ["crashed", "crashed"]
 
 
 def test_processes_that_left_the_launch_group_are_killed(make_config, leak_token):
@@ -184,7 +192,7 @@ def test_processes_that_left_the_launch_group_are_killed(make_config, leak_token
     result = batch.simulations[0]
     orphan = stand_in_report(result.directory)["children"][0]
     assert not pid_alive(orphan)
-    assert any(entry.startswith(f"{orphan} ") for entry in result.data["leftover_processes_killed"])
+    assert any(entry.startswith(f"{orphan} ") for entry in result.leftover_processes_killed)
 
 
 def test_a_lingering_ground_station_is_ended_after_the_settle_time(make_config, leak_token):
@@ -197,7 +205,7 @@ def test_a_lingering_ground_station_is_ended_after_the_settle_time(make_config, 
 def test_hyperparameters_and_the_default_launch_command(batch_inputs):
     config = BatchConfig(inputs=batch_inputs, n_iter=4, seed=10, n_dataset=2, rtf="max", bag=False)
     plan = storage.StoragePlan(Path("/data/dataset_2"), [1, 2, 3, 4])
-    assert hyperparameters(config, 3, plan) == {
+    assert hyperparameters(config, 3, plan).to_param() == {
         "world": "Gym", "subworld": "1Obs_Central_Cylinder", "mission": "Gym",
         "submission": "2UAVs_2paths_Central_Cylinder", "n_dataset": 2, "n_simulation": 3, "N_iter": 4,
         "sm_view": False, "save_data": True, "save_bag": False, "rviz": False, "seed": 13}
@@ -241,8 +249,8 @@ def test_a_hung_supervisor_is_killed_and_the_result_says_so(make_config, leak_to
     assert (result.termination, result.success) == ("supervisor_failed", False)
     assert "hung and was killed" in result.message
     # Its child, in a session of its own, carried the simulation's token and was found by it.
-    assert len(result.data["leftover_processes_killed"]) == 1
-    assert storage.read_summary(batch.dataset_dir)[0]["outcome"] == "supervisor_failed"
+    assert len(result.leftover_processes_killed) == 1
+    assert summary_cells(batch.dataset_dir)[0]["outcome"] == "supervisor_failed"
 
 
 def test_a_supervisor_that_dies_without_a_result_is_reported(make_config, leak_token):

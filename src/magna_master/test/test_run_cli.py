@@ -1,4 +1,5 @@
 """`magna run` and batch.launch: bad input, conflicts, a whole batch, and Ctrl-C in the middle of one."""
+import csv
 import json
 import os
 import shlex
@@ -11,11 +12,18 @@ import pytest
 
 from magna_common.ports import free_port
 from magna_common.processes import pid_alive
+from magna_common.storage_tree import StorageKey, existing_simulations
 from magna_master import cli, storage
 
 ROOT = Path(__file__).resolve().parents[3]
 WORLD = "Gym/1Obs_Central_Cylinder"
 MISSION = "Gym/2UAVs_2paths_Central_Cylinder"
+
+
+def summary_cells(dataset_dir: Path) -> list[dict[str, str]]:
+    """summary.csv as text cells, as a spreadsheet reads it."""
+    with open(dataset_dir / "summary.csv", newline="") as handle:
+        return list(csv.DictReader(handle))
 
 
 def run_args(corpus, data_root, *more):
@@ -24,8 +32,8 @@ def run_args(corpus, data_root, *more):
 
 
 def dataset(data_root, name="default", n=1) -> Path:
-    return storage.StorageKey("Gym", "1Obs_Central_Cylinder", "Gym", "2UAVs_2paths_Central_Cylinder",
-                              name).dataset_dir(data_root, n)
+    return StorageKey("Gym", "1Obs_Central_Cylinder", "Gym", "2UAVs_2paths_Central_Cylinder",
+                      name).dataset_dir(data_root, n)
 
 
 # --- bad input: one clear line, exit 2, nothing started or written ------------------------------------------------
@@ -82,7 +90,7 @@ def test_a_bad_world_file_is_refused_before_anything_starts(tmp_path, corpus, ca
 
 
 def test_world_and_mission_may_be_given_as_files(corpus):
-    from magna_master.batch import resolve_inputs
+    from magna_gs.inputs import resolve_inputs
 
     inputs = resolve_inputs(str(corpus / "Worlds/Gym/1Obs_Central_Cylinder.json"),
                             str(corpus / "Missions/Gym/2UAVs_2paths_Central_Cylinder.json"))
@@ -91,7 +99,7 @@ def test_world_and_mission_may_be_given_as_files(corpus):
 
 
 def test_lowercase_and_capitalised_trees_are_both_searched(tmp_path, corpus):
-    from magna_master.batch import resolve_inputs
+    from magna_gs.inputs import resolve_inputs
 
     tree = tmp_path / "mine"
     (tree / "worlds" / "Gym").mkdir(parents=True)
@@ -223,10 +231,10 @@ def test_ctrl_c_keeps_finished_simulations_and_marks_the_running_one(corpus, tmp
             process.wait()
     assert process.returncode == 130, err
     assert "interrupted" in out and "stopping the running simulation" in err
-    rows = storage.read_summary(folder)
+    rows = summary_cells(folder)
     assert [(r["id"], r["success"], r["outcome"]) for r in rows] == [
         ("1", "True", "succeeded"), ("2", "True", "succeeded"), ("3", "False", "interrupted")]
-    assert storage.existing_simulations(folder) == [1, 2, 3]  # no fourth started
+    assert existing_simulations(folder) == [1, 2, 3]  # no fourth started
     for m in (1, 2):
         assert json.loads((folder / f"simulation_{m}" / "result.json").read_text())["termination"] == "ground_station"
         assert (folder / f"simulation_{m}" / "uav_1.csv").is_file()
@@ -246,7 +254,7 @@ def test_batch_launch_runs_the_same_batch(corpus, tmp_path, leak_token, stand_in
                           "bag:=false", "seed:=10", f"launch_command:={command}"],
                          env=env, capture_output=True, text=True, timeout=180, start_new_session=True)
     assert out.returncode == 0, out.stdout + out.stderr
-    rows = storage.read_summary(dataset(data_root))
+    rows = summary_cells(dataset(data_root))
     assert [(r["id"], r["success"]) for r in rows] == [("1", "True"), ("2", "True")]
     simulation = dataset(data_root) / "simulation_2"
     assert not (simulation / "simulation.bag").exists()

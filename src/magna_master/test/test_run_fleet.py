@@ -6,7 +6,7 @@ from pathlib import Path
 import pytest
 
 from magna_master import cli
-from magna_master.batch import BatchError, launch_command
+from magna_master.batch_config import BatchError, launch_command
 from magna_master.run_cli import check_fleet
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -41,7 +41,8 @@ def test_stand_ins_fly_in_simulated_time_at_any_factor(capsys):
 
 
 def test_the_fleet_file_goes_to_the_simulation_launch():
-    from magna_master.batch import BatchConfig, resolve_inputs
+    from magna_gs.inputs import resolve_inputs
+    from magna_master.batch_config import BatchConfig
     from magna_master.storage import StoragePlan
 
     config = BatchConfig(inputs=resolve_inputs(WORLD, MISSION), fleet=STAND_IN.resolve(), rtf="1")

@@ -1,5 +1,6 @@
 """The storage tree, conflict policies, atomic result and summary files (no ROS)."""
 import csv
+import dataclasses
 import json
 import os
 import threading
@@ -7,6 +8,9 @@ from pathlib import Path
 
 import pytest
 
+from magna_common import storage_tree
+from magna_common.records import SimulationResult
+from magna_common.storage_tree import StorageError, StorageKey
 from magna_master import storage
 from magna_master.storage import (
     APPEND,
@@ -14,8 +18,6 @@ from magna_master.storage import (
     SKIP_SAVE,
     DatasetLock,
     StorageConflict,
-    StorageError,
-    StorageKey,
     plan_storage,
     prepare_simulation_dir,
 )
@@ -23,17 +25,23 @@ from magna_master.storage import (
 KEY = StorageKey("Gym", "1Obs_Central_Cylinder", "Gym", "2UAVs_2paths_Central_Cylinder")
 
 
-def result(m, success=True, **extra):
-    return {"id": m, "success": success, "outcome": "succeeded" if success else "collision",
-            "message": "done", "sim_duration": 12.5 + m, "wall_time": 1.25, "collisions": 0 if success else 2,
-            **extra}
+def result(m, success=True, **fields):
+    return SimulationResult(**{"id": m, "success": success, "outcome": "succeeded" if success else "collision",
+                               "message": "done", "sim_duration": 12.5 + m, "wall_time": 1.25,
+                               "collisions": 0 if success else 2, **fields})
+
+
+def summary_cells(dataset_dir: Path) -> list[dict[str, str]]:
+    """summary.csv as text cells, as a spreadsheet reads it."""
+    with open(dataset_dir / "summary.csv", newline="") as handle:
+        return list(csv.DictReader(handle))
 
 
 def make_dataset(tmp_path, ids):
     """A dataset holding finished simulations `ids` (each with a file and its summary row)."""
     dataset = KEY.dataset_dir(tmp_path, 1)
     for m in ids:
-        folder = storage.simulation_dir(dataset, m)
+        folder = storage_tree.simulation_dir(dataset, m)
         folder.mkdir(parents=True)
         (folder / "uav_1.csv").write_text(f"old data of {m}\n")
         storage.write_result(folder, result(m))
@@ -51,13 +59,13 @@ def test_the_tree_follows_the_design(tmp_path):
     key = StorageKey("Gym", "Four_Cylinders", "Gym", "Two_Paths", "orca")
     dataset = key.dataset_dir(tmp_path, 3)
     assert dataset == tmp_path / "Simulations/Gym/Four_Cylinders/Gym/Two_Paths/orca/dataset_3"
-    assert storage.simulation_dir(dataset, 7) == dataset / "simulation_7"
+    assert storage_tree.simulation_dir(dataset, 7) == dataset / "simulation_7"
     assert StorageKey("W", "S", "M", "N").name == "default"
 
 
 def test_the_default_data_root_is_in_home(monkeypatch, tmp_path):
     monkeypatch.setenv("HOME", str(tmp_path))
-    assert KEY.dataset_dir(storage.DEFAULT_DATA_ROOT, 1).parts[:len(tmp_path.parts) + 1] == \
+    assert KEY.dataset_dir(storage_tree.DEFAULT_DATA_ROOT, 1).parts[:len(tmp_path.parts) + 1] == \
         (*tmp_path.parts, "magna_data")
 
 
@@ -72,8 +80,8 @@ def test_existing_simulations_counts_only_simulation_folders(tmp_path):
     for name in ("simulation_2", "simulation_10", "simulation_x", "logs"):
         (dataset / name).mkdir(parents=True)
     (dataset / "simulation_5").write_text("a file, not a folder")
-    assert storage.existing_simulations(dataset) == [2, 10]
-    assert storage.existing_simulations(tmp_path / "missing") == []
+    assert storage_tree.existing_simulations(dataset) == [2, 10]
+    assert storage_tree.existing_simulations(tmp_path / "missing") == []
 
 
 # --- conflicts -------------------------------------------------------------------------------------------------
@@ -107,16 +115,16 @@ def test_overwrite_deletes_only_the_folders_it_rewrites(tmp_path):
     dataset = make_dataset(tmp_path, [1, 2, 3, 7])
     plan = plan_storage(dataset, 2, OVERWRITE)
     assert plan.ids == [1, 2] and plan.overwrite == [1, 2]
-    assert storage.existing_simulations(dataset) == [1, 2, 3, 7]  # nothing deleted by planning
+    assert storage_tree.existing_simulations(dataset) == [1, 2, 3, 7]  # nothing deleted by planning
     folder = prepare_simulation_dir(plan, 1)
     assert folder.is_dir() and list(folder.iterdir()) == []  # the old simulation_1 is gone
-    assert [r["id"] for r in storage.read_summary(dataset)] == ["2", "3", "7"]  # and its row
+    assert [r["id"] for r in summary_cells(dataset)] == ["2", "3", "7"]  # and its row
     # simulation_2 is deleted only when its own turn comes; 3 and 7 are never touched.
     assert (dataset / "simulation_2" / "uav_1.csv").read_text() == "old data of 2\n"
     prepare_simulation_dir(plan, 2)
     for m in (3, 7):
         assert (dataset / f"simulation_{m}" / "uav_1.csv").read_text() == f"old data of {m}\n"
-    assert [r["id"] for r in storage.read_summary(dataset)] == ["3", "7"]
+    assert [r["id"] for r in summary_cells(dataset)] == ["3", "7"]
 
 
 def test_overwrite_without_conflict_deletes_nothing(tmp_path):
@@ -214,7 +222,7 @@ def test_summary_has_one_row_per_simulation_with_the_design_columns(tmp_path):
     storage.update_summary(tmp_path, result(2, success=False, message="collision\nbetween 1 and 2"))
     storage.update_summary(tmp_path, result(1))
     storage.update_summary(tmp_path, result(10))
-    storage.update_summary(tmp_path, {**result(1), "outcome": "replaced"})
+    storage.update_summary(tmp_path, dataclasses.replace(result(1), outcome="replaced"))
     with open(tmp_path / "summary.csv", newline="") as handle:
         rows = list(csv.DictReader(handle))
     assert list(rows[0]) == ["id", "success", "outcome", "message", "duration", "wall_time", "collisions"]
@@ -236,7 +244,7 @@ def test_summary_rewrites_never_show_a_partial_file(tmp_path):
             except FileNotFoundError:
                 continue
             lines = text.splitlines()
-            if not text.endswith("\n") or lines[0] != ",".join(storage.SUMMARY_COLUMNS) \
+            if not text.endswith("\n") or lines[0] != ",".join(storage_tree.SUMMARY_COLUMNS) \
                     or any(len(line.split(",")) != 7 for line in lines):
                 seen_bad.append(text)
 
@@ -257,7 +265,7 @@ def test_summary_keeps_unknown_columns_of_older_files(tmp_path):
     (tmp_path / "summary.csv").write_text("id,success,outcome,message,duration,wall_time,collisions,note\n"
                                           "1,True,succeeded,ok,1.000,1.000,0,hand-written\n")
     storage.update_summary(tmp_path, result(2))
-    rows = storage.read_summary(tmp_path)
+    rows = summary_cells(tmp_path)
     assert rows[0]["note"] == "hand-written" and rows[1]["id"] == "2"
 
 

@@ -1,5 +1,4 @@
 """SupervisorCore without ROS: reports, crashes, time limits, interruptions and the processes it ends."""
-import json
 import os
 import signal
 import subprocess
@@ -9,6 +8,8 @@ import time
 
 import pytest
 
+from magna_common.records import SimulationResult
+from magna_common.ros_names import GS_STOP, MASTER_TERMINATION
 from magna_master import supervisor as sv
 from magna_master.supervisor import SupervisorCore, Termination
 
@@ -19,7 +20,7 @@ def core_for(tmp_path, command, **kwargs):
     kwargs.setdefault("shutdown_timeout", 2.0)
     kwargs.setdefault("settle", 0.5)
     return SupervisorCore(command, tmp_path / "result.json", tmp_path / "logs" / "launch.log",
-                          data_dir=tmp_path, extra={"id": 4, "seed": 9}, **kwargs)
+                          data_dir=tmp_path, known=SimulationResult(id=4, seed=9), **kwargs)
 
 
 def later(seconds, action):
@@ -29,7 +30,7 @@ def later(seconds, action):
 
 
 def written(tmp_path):
-    return json.loads((tmp_path / "result.json").read_text())
+    return SimulationResult.read(tmp_path / "result.json")
 
 
 def test_the_ground_station_report_is_the_result(tmp_path, leak_token):
@@ -39,18 +40,18 @@ def test_the_ground_station_report_is_the_result(tmp_path, leak_token):
     def report():
         acknowledged.append(core.on_termination(Termination(True, "succeeded", "all good", 42.5, 0)))
         # Recorded before it is acknowledged: result.json exists already, marked not final.
-        acknowledged.append(written(tmp_path)["final"])
+        acknowledged.append(written(tmp_path).final)
 
     later(0.5, report)
     started = time.monotonic()
     result = core.run()
     assert acknowledged == [True, False]
     assert result == written(tmp_path)
-    assert result["termination"] == sv.GROUND_STATION and result["final"] is True
-    assert (result["success"], result["outcome"], result["message"]) == (True, "succeeded", "all good")
-    assert (result["sim_duration"], result["collisions"], result["id"], result["seed"]) == (42.5, 0, 4, 9)
-    assert 0.4 < result["wall_time"] < 2.0
-    assert result["launch_exit_code"] is not None and not sv.pid_alive(result["launch_pid"])
+    assert result.termination == sv.GROUND_STATION and result.final is True
+    assert (result.success, result.outcome, result.message) == (True, "succeeded", "all good")
+    assert (result.sim_duration, result.collisions, result.id, result.seed) == (42.5, 0, 4, 9)
+    assert 0.4 < result.wall_time < 2.0
+    assert result.launch_exit_code is not None and not sv.pid_alive(result.launch_pid)
     assert time.monotonic() - started < 10
 
 
@@ -59,23 +60,23 @@ def test_a_second_report_does_not_replace_the_first(tmp_path, leak_token):
     later(0.3, lambda: (core.on_termination(Termination(True, "succeeded", "first", 1.0, 0)),
                         core.on_termination(Termination(False, "aborted", "second", 2.0, 3))))
     result = core.run()
-    assert (result["outcome"], result["message"]) == ("succeeded", "first")
+    assert (result.outcome, result.message) == ("succeeded", "first")
 
 
 def test_a_launch_that_ends_by_itself_after_reporting_is_not_killed(tmp_path, leak_token):
     core = core_for(tmp_path, [sys.executable, "-c", "import time; time.sleep(0.8)"], settle=5.0)
     later(0.2, lambda: core.on_termination(Termination(True, "succeeded", "", 1.0, 0)))
     result = core.run()
-    assert result["launch_exit_code"] == 0  # it exited on its own within the settle time
+    assert result.launch_exit_code == 0  # it exited on its own within the settle time
 
 
 def test_a_launch_that_exits_without_reporting_crashed(tmp_path, leak_token):
     command = [sys.executable, "-c", "print('node [magna_sim] died: pybullet error', flush=True); raise SystemExit(3)"]
     result = core_for(tmp_path, command).run()
-    assert result["termination"] == sv.CRASHED and result["outcome"] == "crashed" and not result["success"]
-    assert result["launch_exit_code"] == 3
-    assert "status 3" in result["message"] and sv.TERMINATION_SERVICE in result["message"]
-    assert "pybullet error" in result["message"]  # the tail of launch.log says why
+    assert result.termination == sv.CRASHED and result.outcome == "crashed" and not result.success
+    assert result.launch_exit_code == 3
+    assert "status 3" in result.message and MASTER_TERMINATION in result.message
+    assert "pybullet error" in result.message  # the tail of launch.log says why
 
 
 def test_the_time_limit_asks_the_ground_station_to_stop_then_ends_it(tmp_path, leak_token):
@@ -85,9 +86,9 @@ def test_the_time_limit_asks_the_ground_station_to_stop_then_ends_it(tmp_path, l
     started = time.monotonic()
     result = core.run()
     assert len(asked) == 1 and asked[0] - started >= 0.5
-    assert result["termination"] == sv.TIME_LIMIT and result["outcome"] == "time_limit" and result["timed_out"]
-    assert result["gs_stop_called"] and f"{sv.GS_STOP_SERVICE} was called" in result["message"]
-    assert not result["success"] and not sv.pid_alive(result["launch_pid"])
+    assert result.termination == sv.TIME_LIMIT and result.outcome == "time_limit" and result.timed_out
+    assert result.gs_stop_called and f"{GS_STOP} was called" in result.message
+    assert not result.success and not sv.pid_alive(result.launch_pid)
 
 
 def test_a_ground_station_that_reports_when_stopped_keeps_its_outcome(tmp_path, leak_token):
@@ -96,8 +97,8 @@ def test_a_ground_station_that_reports_when_stopped_keeps_its_outcome(tmp_path, 
     started = time.monotonic()
     result = core.run()
     assert time.monotonic() - started < 4.0  # the report ends the grace period early
-    assert (result["termination"], result["outcome"], result["sim_duration"]) == (sv.TIME_LIMIT, "preempted", 7.0)
-    assert "stopped" in result["message"] and not result["success"]
+    assert (result.termination, result.outcome, result.sim_duration) == (sv.TIME_LIMIT, "preempted", 7.0)
+    assert "stopped" in result.message and not result.success
 
 
 def test_a_ground_station_still_starting_is_asked_again_until_its_stop_service_answers(tmp_path, leak_token):
@@ -110,21 +111,21 @@ def test_a_ground_station_still_starting_is_asked_again_until_its_stop_service_a
     core = core_for(tmp_path, SLEEPER, time_limit=0.3, stop_grace=5.0,
                     stop_ground_station=stop_service_up_at_the_third_call)
     result = core.run()
-    assert len(asked) == 3 and result["gs_stop_called"]
+    assert len(asked) == 3 and result.gs_stop_called
     assert asked[1] - asked[0] >= sv.STOP_RETRY * 0.9
 
 
 def test_without_a_stop_service_the_message_says_so(tmp_path, leak_token):
     result = core_for(tmp_path, SLEEPER, time_limit=0.3, stop_grace=0.2).run()
-    assert not result["gs_stop_called"] and "is not served" in result["message"]
+    assert not result.gs_stop_called and "is not served" in result.message
 
 
 def test_a_stop_request_interrupts(tmp_path, leak_token):
     core = core_for(tmp_path, SLEEPER)
     later(0.3, core.request_stop)
     result = core.run()
-    assert (result["termination"], result["outcome"], result["success"]) == (sv.INTERRUPTED, "interrupted", False)
-    assert not sv.pid_alive(result["launch_pid"])
+    assert (result.termination, result.outcome, result.success) == (sv.INTERRUPTED, "interrupted", False)
+    assert not sv.pid_alive(result.launch_pid)
 
 
 def test_a_launch_that_ignores_sigint_and_sigterm_is_killed(tmp_path, leak_token):
@@ -133,7 +134,7 @@ def test_a_launch_that_ignores_sigint_and_sigterm_is_killed(tmp_path, leak_token
     core = core_for(tmp_path, deaf, shutdown_timeout=0.5)
     later(0.3, core.request_stop)
     result = core.run()
-    assert result["launch_exit_code"] == -signal.SIGKILL
+    assert result.launch_exit_code == -signal.SIGKILL
 
 
 def test_processes_in_sessions_of_their_own_are_found_by_the_token(tmp_path, leak_token, monkeypatch):
@@ -147,20 +148,20 @@ def test_processes_in_sessions_of_their_own_are_found_by_the_token(tmp_path, lea
     result = core.run()
     orphan = int((tmp_path / "logs" / "launch.log").read_text().split()[0])
     assert not sv.pid_alive(orphan)
-    assert any(entry.startswith(f"{orphan} ") for entry in result["leftover_processes_killed"])
+    assert any(entry.startswith(f"{orphan} ") for entry in result.leftover_processes_killed)
 
 
 def test_a_command_that_cannot_start_is_reported(tmp_path):
     result = core_for(tmp_path, ["/nonexistent/roslaunch"]).run()
-    assert result["termination"] == sv.START_FAILED and "cannot start '/nonexistent/roslaunch'" in result["message"]
-    assert written(tmp_path)["termination"] == sv.START_FAILED
+    assert result.termination == sv.START_FAILED and "cannot start '/nonexistent/roslaunch'" in result.message
+    assert written(tmp_path).termination == sv.START_FAILED
 
 
 def test_the_result_lists_the_ground_station_files(tmp_path, leak_token):
     (tmp_path / "uav_1.csv").write_text("x")
     (tmp_path / "simulation.bag").write_text("x")
     result = core_for(tmp_path, [sys.executable, "-c", "pass"]).run()
-    assert result["files"] == ["simulation.bag", "uav_1.csv"]  # not result.json, not logs/
+    assert list(result.files) == ["simulation.bag", "uav_1.csv"]  # not result.json, not logs/
 
 
 def test_kill_tagged_ends_exactly_the_tagged_processes(leak_token):

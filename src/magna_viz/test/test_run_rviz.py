@@ -6,8 +6,10 @@ from pathlib import Path
 import pytest
 
 from magna_common.ros_master import RosMaster
+from magna_gs.inputs import resolve_inputs
 from magna_master import cli, storage
-from magna_master.batch import BatchConfig, BatchError, hyperparameters, launch_command, preflight, resolve_inputs
+from magna_master.batch import preflight
+from magna_master.batch_config import BatchConfig, BatchError, hyperparameters, launch_command
 from magna_viz.rviz_launcher import fitted_config
 from magna_viz.rviz_launcher import main as rviz_world_main
 
@@ -22,7 +24,7 @@ def inputs():
 def test_rviz_reaches_the_hyperparameters_and_the_launch(inputs):
     plan = storage.StoragePlan(Path("/data/dataset_1"), [1])
     on, off = BatchConfig(inputs=inputs, rviz=True), BatchConfig(inputs=inputs)
-    assert hyperparameters(on, 1, plan)["rviz"] is True and hyperparameters(off, 1, plan)["rviz"] is False
+    assert hyperparameters(on, 1, plan).rviz is True and hyperparameters(off, 1, plan).rviz is False
     assert launch_command(on, 1, Path("/data/dataset_1/simulation_1"), plan)[-1] == "rviz:=true"
     assert not any(a.startswith("rviz:=") for a in launch_command(off, 1, None, plan))
     custom = BatchConfig(inputs=inputs, rviz=True, launch_command=("my_launch", "show:={rviz}"))
@@ -48,12 +50,14 @@ def test_without_a_display_run_rviz_stops_before_anything_and_points_to_replay(i
 
 
 def test_the_live_configuration_is_fitted_to_the_world_file(tmp_path, monkeypatch):
+    from magna_common.records import WorldRecord
     from magna_viz import rviz_config as rc
     from magna_worlds.generate import resolve_world, world_record
     from magna_worlds.loader import load_world
 
     monkeypatch.setenv("ROS_HOME", str(tmp_path))
-    record = {"parts": {"main": world_record(resolve_world(load_world(inputs_world_file()), 0))}}
+    record = WorldRecord.from_dict({"parts": {"main": world_record(resolve_world(load_world(inputs_world_file()), 0))}},
+                                   "Gym")
     path, note = fitted_config("Gym", record, None, None, "live_Gym_Central_Obstacle_Torus")
     assert path == tmp_path / "magna_viz" / "live_Gym_Central_Obstacle_Torus.rviz" and "fitted" in note
     config = rc.load_config(path)

@@ -6,9 +6,10 @@ import math
 import numpy as np
 import pytest
 
+from magna_common.search_path import world_folders
 from magna_worlds.errors import WorldError
 from magna_worlds.generate import resolve_world
-from magna_worlds.loader import default_search_path, load_world, world_from_data
+from magna_worlds.loader import load_world, world_from_data
 from tests.support import CORPUS
 
 CORPUS_WORLDS = CORPUS / "Worlds"
@@ -145,7 +146,7 @@ def test_included_world_needs_no_boundaries(tmp_path):
 
 def test_search_path_from_the_environment(tmp_path, monkeypatch):
     monkeypatch.setenv("MAGNA_WORLDS_PATH", f"{tmp_path / 'a'}:{tmp_path / 'b'}")
-    path = default_search_path()
+    path = world_folders()
     assert path[:2] == [tmp_path / "a", tmp_path / "b"]
     assert path[-1].name == "worlds"
     write(tmp_path / "b" / "Parts" / "Ring.json", world(volume("Ring", "R")))

@@ -14,8 +14,11 @@ saying which spelling replaces them. The table lives in the root README too.
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
+
+from magna_common.errors import UsageError
 
 RTF_METAVAR = "max|FACTOR"
 RTF_HELP = "real-time factor: 'max' runs as fast as the machine goes, a number runs that many times real time"
@@ -99,6 +102,20 @@ def add_search_path(parser, *, what: str = "worlds and missions") -> None:
 
 def add_rtf(parser, *, default: str = "max", help: str = RTF_HELP) -> None:
     parser.add_argument("--rtf", default=default, metavar=RTF_METAVAR, help=f"{help} (default {default})")
+
+
+def parse_rtf(value: str) -> str:
+    """An --rtf value as the simulator takes it: 'max' or a factor > 0 ('10.0' -> '10'); UsageError otherwise."""
+    text = str(value).strip().lower()
+    if text == "max":
+        return "max"
+    try:
+        factor = float(text)
+    except ValueError:
+        factor = math.nan
+    if not math.isfinite(factor) or factor <= 0:
+        raise UsageError(f"--rtf {value!r}: give 'max' (as fast as possible) or a factor > 0 such as 1.0 or 10")
+    return f"{factor:g}"
 
 
 def check_output(path, force: bool, what: str = "") -> None:

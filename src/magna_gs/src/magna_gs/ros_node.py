@@ -41,6 +41,24 @@ from uav_abstraction_layer.msg import State as UalState
 
 from magna_common.files import write_atomically
 from magna_common.processes import end_parent_launch, end_process_group
+from magna_common.records import Hyperparameters
+from magna_common.ros_names import (
+    GS_COMMAND,
+    GS_CONTINUE,
+    GS_CRITICAL_EVENT,
+    GS_STATE_ACTUALIZATION,
+    GS_STOP,
+    HYPERPARAMETERS,
+    MASTER_TERMINATION,
+    SIM_DELETE_MODEL,
+    SIM_SPAWN_MODEL,
+    WORLD_ADD,
+    WORLD_BOUNDARIES,
+    WORLD_DELETE,
+    battery,
+    manager,
+    ual,
+)
 from magna_gs.bag_recorder import BagRecorder, mission_topics
 from magna_gs.commands import CommandPlan, CommandRefused, Param, UavStatus, plan_command
 from magna_gs.factory import ActionClients, RosStateFactory, wait_sim_seconds, world_poses
@@ -147,7 +165,7 @@ class GroundStationServices:
         return self._world_config(action, world_id, definition)
 
     def _world_config(self, action: str, world_id, definition) -> bool:
-        rospy.wait_for_service("/magna/world/add", timeout=30.0)
+        rospy.wait_for_service(WORLD_ADD, timeout=30.0)
         if action == "spawn" and definition is None:
             return True
         if action in ("spawn", "add"):
@@ -156,7 +174,7 @@ class GroundStationServices:
                 text = "from_hyperparameters"
             else:
                 text = json.dumps(list(definition.volumes))  # a bare list of volumes: inline, as missions write it
-            answer = rospy.ServiceProxy("/magna/world/add", AddWorldPart)(id=part, world="", subworld="",
+            answer = rospy.ServiceProxy(WORLD_ADD, AddWorldPart)(id=part, world="", subworld="",
                                                                           definition_json=text)
             if not answer.success:
                 rospy.logerr(f"world_config add: {answer.message}")
@@ -170,7 +188,7 @@ class GroundStationServices:
 
     def delete_world(self) -> bool:
         ok = True
-        delete = rospy.ServiceProxy("/magna/world/delete", DeleteWorldPart)
+        delete = rospy.ServiceProxy(WORLD_DELETE, DeleteWorldPart)
         for part in list(self.world_parts):
             try:
                 answer = delete(id=part)
@@ -210,8 +228,8 @@ class GroundStationServices:
         if len(initial_poses) < len(agents):
             rospy.logerr(f"spawn_agents: {len(initial_poses)} initial poses for {len(agents)} agents")
             return False
-        rospy.wait_for_service("/magna/sim/spawn_model", timeout=30.0)
-        spawn = rospy.ServiceProxy("/magna/sim/spawn_model", SpawnModel)
+        rospy.wait_for_service(SIM_SPAWN_MODEL, timeout=30.0)
+        spawn = rospy.ServiceProxy(SIM_SPAWN_MODEL, SpawnModel)
         placed = list(zip(agents, initial_poses, strict=False))
         # MAVLink UAVs first: a vehicle that is not there stops the mission before anything flies.
         placed.sort(key=lambda item: not (self.mavlink is not None and self.mavlink.flies(item[0].id)))
@@ -267,7 +285,7 @@ class GroundStationServices:
         if self.bag is None:
             return
         flying = [c.id for c in self.mission.agents]  # spawned in magna_sim or reached through a bridge
-        topics = [f"/uav_{i}/ual/{name}" for i in flying for name in ("pose", "velocity")]
+        topics = [ual(i, name) for i in flying for name in ("pose", "velocity")]
         missing = self.bag.wait_listening(topics, timeout=BAG_WAIT)
         if missing:
             rospy.logwarn(f"the bag is not recording {', '.join(missing)} after {BAG_WAIT:.0f} s; it will miss "
@@ -302,7 +320,7 @@ class GroundStationServices:
         self.sim_pause.run()  # a service call: it needs no time, only managers that are not held
         ok = True
         for uav_id in ids:
-            service = f"/magna/uav_{uav_id}/algorithm_control"
+            service = manager(uav_id, "algorithm_control")
             rospy.wait_for_service(service, timeout=30.0)
             answer = rospy.ServiceProxy(service, AlgorithmControl)(name=name, action=action, params=params,
                                                                    values=[float(v) for v in values],
@@ -334,8 +352,8 @@ class GroundStationServices:
     def stop_managers(self, grace: float = 10.0) -> None:
         for uav_id in list(self.managers):
             try:
-                rospy.wait_for_service(f"/magna/uav_{uav_id}/die", timeout=2.0)
-                rospy.ServiceProxy(f"/magna/uav_{uav_id}/die", Die)(save_data=False)
+                rospy.wait_for_service(manager(uav_id, "die"), timeout=2.0)
+                rospy.ServiceProxy(manager(uav_id, "die"), Die)(save_data=False)
             except (rospy.ROSException, rospy.ServiceException):
                 pass
         deadline = time.monotonic() + grace
@@ -349,10 +367,10 @@ class GroundStationServices:
 
     def delete_uavs(self) -> None:
         try:
-            rospy.wait_for_service("/magna/sim/delete_model", timeout=2.0)
+            rospy.wait_for_service(SIM_DELETE_MODEL, timeout=2.0)
         except rospy.ROSException:
             return
-        delete = rospy.ServiceProxy("/magna/sim/delete_model", DeleteModel)
+        delete = rospy.ServiceProxy(SIM_DELETE_MODEL, DeleteModel)
         for uav_id in self.spawned:
             try:
                 delete(name=f"uav_{uav_id}")
@@ -363,7 +381,7 @@ class GroundStationServices:
 
 class GroundStation:
     def __init__(self):
-        self.hyper = rospy.get_param("/magna/hyperparameters", {}) or {}
+        hyper = Hyperparameters.from_param(rospy.get_param(HYPERPARAMETERS, None))
         mission_file = rospy.get_param("~mission_file", "")
         if not mission_file:
             raise MissionError("~mission_file is missing: give the mission JSON, e.g. _mission_file:=missions/x.json")
@@ -372,12 +390,12 @@ class GroundStation:
         self.mission, self.changes = loaded.mission, loaded.changes
         for change in self.changes:
             rospy.loginfo(f"mission migrated: {change}")
-        data_dir = rospy.get_param("~data_dir", "") or self.hyper.get("data_dir", "")
+        data_dir = rospy.get_param("~data_dir", "")  # the Master's simulation folder (simulation.launch data_dir)
         self.data_dir = Path(data_dir).expanduser() if data_dir else None
         if self.data_dir:
             self.data_dir.mkdir(parents=True, exist_ok=True)
-        self.save_data = bool(rospy.get_param("~save_data", self.hyper.get("save_data", True)))
-        record = self.data_dir and rospy.get_param("~bag", self.hyper.get("save_bag", True))
+        self.save_data = bool(rospy.get_param("~save_data", hyper.save_data))
+        record = self.data_dir and rospy.get_param("~bag", hyper.save_bag)
         self.bag = (BagRecorder(self.data_dir / "simulation.bag", mission_topics(c.id for c in self.mission.agents))
                     if record else None)
         self.services = GroundStationServices(self.mission, self.mission_file, self.data_dir, self.save_data,
@@ -391,24 +409,24 @@ class GroundStation:
         self.statuses: dict[int, dict] = {c.id: {} for c in self.mission.agents}
         self.critical_events: list[tuple[int, str]] = []
         self.lock = threading.Lock()
-        self.critical = rospy.Publisher("/magna/gs/critical_event", String, queue_size=1, latch=True)
+        self.critical = rospy.Publisher(GS_CRITICAL_EVENT, String, queue_size=1, latch=True)
         for config in self.mission.agents:
-            rospy.Subscriber(f"/uav_{config.id}/ual/pose", PoseStamped, self._on_pose, config.id, queue_size=1)
-            rospy.Subscriber(f"/uav_{config.id}/ual/state", UalState, self._on_ual_state, config.id, queue_size=1)
-            rospy.Subscriber(f"/uav_{config.id}/mavros/battery", BatteryState, self._on_battery, config.id,
+            rospy.Subscriber(ual(config.id, "pose"), PoseStamped, self._on_pose, config.id, queue_size=1)
+            rospy.Subscriber(ual(config.id, "state"), UalState, self._on_ual_state, config.id, queue_size=1)
+            rospy.Subscriber(battery(config.id), BatteryState, self._on_battery, config.id,
                              queue_size=1)
         self.service_handles = [
-            rospy.Service("/magna/gs/state_actualization", StateActualization, self._on_state),
-            rospy.Service("/magna/gs/command", GroundStationCommand, self._on_command),
-            rospy.Service("/magna/gs/stop", Trigger, self._on_stop),
-            rospy.Service("/magna/gs/continue", Trigger, self._on_continue),
+            rospy.Service(GS_STATE_ACTUALIZATION, StateActualization, self._on_state),
+            rospy.Service(GS_COMMAND, GroundStationCommand, self._on_command),
+            rospy.Service(GS_STOP, Trigger, self._on_stop),
+            rospy.Service(GS_CONTINUE, Trigger, self._on_continue),
         ]
 
     def _load_fleet(self) -> None:
         """The fleet of the hil and real UAVs; a missing or unfitting fleet stops us here (exit 2)."""
         modes = {c.id: c.mode for c in self.mission.agents}
         flown = mavlink_uavs(modes)
-        fleet_file = rospy.get_param("~fleet_file", "") or self.hyper.get("fleet", "")
+        fleet_file = rospy.get_param("~fleet_file", "")
         if not flown:
             if fleet_file:
                 rospy.logwarn(f"{fleet_file}: not used: every UAV of {self.mission_file.name} is sitl")
@@ -439,7 +457,7 @@ class GroundStation:
 
     def _start_utm(self) -> None:
         """Start the UTM when the run names a plan or the mission flies UTM plans; a bad plan stops us here."""
-        plan_file = rospy.get_param("~utm_plan", "") or self.hyper.get("utm_plan", "")
+        plan_file = rospy.get_param("~utm_plan", "")
         plan_file = str(Path(plan_file).expanduser().resolve()) if plan_file else ""
         data = json.loads(self.mission_file.read_text())
         if not plan_file and not mission_uses_utm(data):
@@ -484,7 +502,7 @@ class GroundStation:
     # --- operators ------------------------------------------------------------------------
     def _on_command(self, req):
         params = [Param(p.name, p.number, p.text, p.unit) for p in req.parameters]
-        boundaries = rospy.get_param("/magna/world/boundaries", None)
+        boundaries = rospy.get_param(WORLD_BOUNDARIES, None)
         try:
             plan = plan_command(req.intent, req.action, req.agent, params, self.uav_statuses(),
                                 None if boundaries is None else np.asarray(boundaries, dtype=float))
@@ -581,16 +599,15 @@ class GroundStation:
             self.bag.close(grace=10.0)
 
     def _report(self, success, outcome, message, duration, collisions, wall) -> None:
-        name = "/magna/master/simulation_termination"
         try:
-            rospy.wait_for_service(name, timeout=2.0)
+            rospy.wait_for_service(MASTER_TERMINATION, timeout=2.0)
         except rospy.ROSException:
             rospy.loginfo(f"no Master to report to: {outcome}, {message}")
             return
         try:
-            rospy.ServiceProxy(name, SimulationTermination)(success=success, outcome=outcome, message=message,
-                                                            sim_duration=duration, collisions=collisions,
-                                                            wall_duration=wall[0], setup_wall_duration=wall[1])
+            report = rospy.ServiceProxy(MASTER_TERMINATION, SimulationTermination)
+            report(success=success, outcome=outcome, message=message, sim_duration=duration, collisions=collisions,
+                   wall_duration=wall[0], setup_wall_duration=wall[1])
         except rospy.ServiceException as error:
             rospy.logwarn(f"the Master did not take the result: {error}")
 

@@ -144,6 +144,7 @@ def check_ual_checksums() -> CheckResult:
 def check_live_graph(round_trips: int) -> CheckResult:
     """A private master, a UAL take_off service and a UAL state topic, timed."""
     from magna_common.ros_master import RosMaster
+    from magna_common.ros_names import ual
 
     with RosMaster() as master:
         os.environ.update(master.env())
@@ -154,7 +155,7 @@ def check_live_graph(round_trips: int) -> CheckResult:
         rospy.init_node("magna_doctor", anonymous=True, disable_signals=True)
         try:
             heights = []
-            service = rospy.Service("/uav_1/ual/take_off", TakeOff,
+            service = rospy.Service(ual(1, "take_off"), TakeOff,
                                     lambda req: heights.append(req.height) or TakeOffResponse())
             received = []
             got_all = threading.Event()
@@ -164,10 +165,10 @@ def check_live_graph(round_trips: int) -> CheckResult:
                 if len(received) >= round_trips:
                     got_all.set()
 
-            subscriber = rospy.Subscriber("/uav_1/ual/state", State, on_state, queue_size=round_trips)
-            publisher = rospy.Publisher("/uav_1/ual/state", State, queue_size=round_trips)
-            rospy.wait_for_service("/uav_1/ual/take_off", timeout=10)
-            take_off = rospy.ServiceProxy("/uav_1/ual/take_off", TakeOff, persistent=True)
+            subscriber = rospy.Subscriber(ual(1, "state"), State, on_state, queue_size=round_trips)
+            publisher = rospy.Publisher(ual(1, "state"), State, queue_size=round_trips)
+            rospy.wait_for_service(ual(1, "take_off"), timeout=10)
+            take_off = rospy.ServiceProxy(ual(1, "take_off"), TakeOff, persistent=True)
             call_ms = []
             for i in range(round_trips):
                 start = time.perf_counter()

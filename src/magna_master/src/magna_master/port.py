@@ -250,9 +250,9 @@ def port_folder(folder: Path, strict: bool = False, seed: int = 0,
                 progress: Callable[[str], None] | None = None) -> PortReport:
     """Load every world and mission under `folder` and pair them (no flying)."""
     world_files, mission_files, worlds_root = discover(folder)
-    from magna_worlds.loader import default_search_path
+    from magna_common.search_path import world_folders
 
-    search_path = [p for p in (worlds_root,) if p is not None] + default_search_path()
+    search_path = [p for p in (worlds_root,) if p is not None] + world_folders()
     worlds = []
     for path in world_files:
         if progress:

@@ -13,9 +13,18 @@ import json
 import sys
 from pathlib import Path
 
-from magna_common.cli_vocabulary import OutputExists, add_deprecated_flag, add_force, add_output, add_rtf, check_output
+from magna_common.cli_vocabulary import (
+    OutputExists,
+    add_deprecated_flag,
+    add_force,
+    add_output,
+    add_rtf,
+    check_output,
+    parse_rtf,
+)
 from magna_common.errors import UsageError
 from magna_common.files import write_text_atomically
+from magna_common.storage_tree import DEFAULT_DATA_ROOT
 
 HELP = "porting report for a folder of ROS-MAGNA worlds and missions: what loads, migrates, warns and flies"
 
@@ -48,7 +57,6 @@ examples:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from magna_master import storage
     from magna_master.run_cli import percentage_arg
 
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
@@ -65,7 +73,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="with --fly: keep no simulation folders (by default each flight is saved under "
                              "DATA_ROOT/Simulations/... with the name 'port', appended)")
     add_deprecated_flag(parser, "--no-data", "skip_save", "--skip-save")
-    parser.add_argument("--data-root", type=Path, default=storage.DEFAULT_DATA_ROOT, metavar="DIR",
+    parser.add_argument("--data-root", type=Path, default=DEFAULT_DATA_ROOT, metavar="DIR",
                         help="with --fly: where Simulations/ goes (default: ~/magna_data)")
     parser.add_argument("--time-limit", type=float, default=600.0, metavar="SECONDS",
                         help="with --fly: wall-clock seconds per flight before it is stopped (default: 600)")
@@ -102,16 +110,18 @@ def run(args) -> int:
 
 
 def _fly(report, args) -> None:
-    from magna_master import storage
-    from magna_master.batch import BatchConfig, parse_rtf, resolve_inputs, run_batch
+    from magna_gs.inputs import resolve_inputs
+    from magna_master.batch import run_batch
+    from magna_master.batch_config import BatchConfig
     from magna_master.port import fly_pairs
+    from magna_master.storage import APPEND
 
     rtf = parse_rtf(args.rtf)
 
     def make_config(mission):
         inputs = resolve_inputs(str(mission.world.path), str(mission.path), check=False)
         return BatchConfig(inputs=inputs, n_iter=1, name="port", rtf=rtf, seed=args.seed,
-                           save_data=not args.skip_save, data_root=args.data_root, policy=storage.APPEND,
+                           save_data=not args.skip_save, data_root=args.data_root, policy=APPEND,
                            time_limit=args.time_limit or None, battery_floor=args.battery_floor)
 
     def progress(index, total, mission):

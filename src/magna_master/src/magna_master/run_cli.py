@@ -17,8 +17,9 @@ import shlex
 import sys
 from pathlib import Path
 
-from magna_common.cli_vocabulary import add_deprecated_flag, add_rtf, add_search_path
-from magna_common.errors import UsageError
+from magna_common.cli_vocabulary import add_deprecated_flag, add_rtf, add_search_path, parse_rtf
+from magna_common.storage_tree import DEFAULT_DATA_ROOT, DEFAULT_NAME
+from magna_master.storage import APPEND, OVERWRITE
 
 HELP = "run a batch of simulations of a mission in a world; save bags, CSVs and a summary per dataset"
 
@@ -29,9 +30,9 @@ holding one row per simulation (id, success, outcome, message, duration in simul
 collisions). Simulation M runs with seed S+M.
 
 --world and --mission take a file, or a name looked up as WORLD/SUBWORLD.json and
-MISSION/SUBMISSION.json: first in each --search-path DIR (its worlds/ or Worlds/, missions/ or
-Missions/, or DIR itself), then in the project's worlds/ and missions/. The original ROS-MAGNA
-files are found with --search-path ../shared/ros_magna_corpus.
+MISSION/SUBMISSION.json: first in each --search-path DIR (its worlds/ or missions/, DIR itself, its
+Worlds/ or Missions/), then in $MAGNA_WORLDS_PATH or $MAGNA_MISSIONS_PATH, then in the project's
+worlds/ and missions/. The original ROS-MAGNA files are found with --search-path ../shared/ros_magna_corpus.
 
 When simulation folders of this dataset exist already: --append numbers the new ones after the last,
 --overwrite deletes and rewrites exactly the folders it runs again (each just before its run); with
@@ -52,8 +53,6 @@ examples:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from magna_master import storage
-
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
     parser.epilog = _EPILOG
     parser.add_argument("--world", required=True, metavar="WORLD/SUBWORLD",
@@ -61,7 +60,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--mission", required=True, metavar="MISSION/SUBMISSION",
                         help="the mission: a name, e.g. Gym/2UAVs_Crossing_ORCA, or a file")
     parser.add_argument("--n-iter", type=int, default=1, metavar="N", help="simulations to run (default: 1)")
-    parser.add_argument("--name", default=storage.DEFAULT_NAME,
+    parser.add_argument("--name", default=DEFAULT_NAME,
                         help="name of this series of datasets (a folder; default: %(default)s)")
     parser.add_argument("--dataset", type=int, default=1, metavar="N", help="dataset number (default: 1)")
     add_rtf(parser, help="real-time factor of the simulator: 'max' runs as fast as the machine goes, a number "
@@ -76,13 +75,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="show each simulation in rviz as it flies (needs a display; without one use "
                              "`magna replay --headless` afterwards)")
     add_search_path(parser)
-    parser.add_argument("--data-root", type=Path, default=storage.DEFAULT_DATA_ROOT, metavar="DIR",
+    parser.add_argument("--data-root", type=Path, default=DEFAULT_DATA_ROOT, metavar="DIR",
                         help="where Simulations/ goes (default: ~/magna_data)")
     dataset = parser.add_argument_group("the dataset (when its simulation folders exist already)")
     policy = dataset.add_mutually_exclusive_group()
-    policy.add_argument("--append", dest="policy", action="store_const", const=storage.APPEND,
+    policy.add_argument("--append", dest="policy", action="store_const", const=APPEND,
                         help="if the dataset has simulations: number the new ones after the last")
-    policy.add_argument("--overwrite", dest="policy", action="store_const", const=storage.OVERWRITE,
+    policy.add_argument("--overwrite", dest="policy", action="store_const", const=OVERWRITE,
                         help="if the dataset has simulations: delete and rewrite the ones run again")
     policy.add_argument("--skip-save", action="store_true",
                         help="save nothing (no folders, no summary, no report); the table is printed at the end")
@@ -127,14 +126,15 @@ def percentage_arg(text: str) -> float:
 
 
 def _placeholders():
-    from magna_master.batch import PLACEHOLDERS
+    from magna_master.batch_config import PLACEHOLDERS
 
     return PLACEHOLDERS
 
 
 def build_config(args):
-    """BatchConfig from parsed arguments; BatchError on bad input."""
-    from magna_master.batch import DEFAULT_LAUNCH_COMMAND, BatchConfig, BatchError, resolve_inputs
+    """BatchConfig from parsed arguments; a UserError (InputError, BatchError) on bad input."""
+    from magna_gs.inputs import resolve_inputs
+    from magna_master.batch_config import DEFAULT_LAUNCH_COMMAND, BatchConfig, BatchError
 
     inputs = resolve_inputs(args.world, args.mission, args.search_path, strict=args.strict)
     command = DEFAULT_LAUNCH_COMMAND
@@ -169,7 +169,7 @@ def check_fleet(mission_file: Path, fleet_file: Path | None, rtf: str) -> tuple[
     outside the simulator (its links and timeouts live in wall time): the default --rtf (max) then becomes 1,
     any other factor is refused. Stand-ins fly in simulated time, so a fleet of stand-ins keeps --rtf."""
     from magna_gs.mission.loader import load_mission
-    from magna_master.batch import BatchError, parse_rtf
+    from magna_master.batch_config import BatchError
     from magna_mavlink.fleet import FleetError, check_against_mission, load_fleet, mavlink_uavs
 
     modes = {agent.id: agent.mode for agent in load_mission(mission_file).mission.agents}
@@ -202,16 +202,14 @@ def check_fleet(mission_file: Path, fleet_file: Path | None, rtf: str) -> tuple[
 
 
 def run(args) -> int:
-    from magna_master import storage
-    from magna_master.batch import BatchError, format_summary, run_batch
+    from magna_master.batch import run_batch
+    from magna_master.batch_summary import format_summary
+    from magna_master.storage import ask_policy
 
-    try:
-        config = build_config(args)
-        ask = storage.ask_policy if sys.stdin is not None and sys.stdin.isatty() else None
-        reports = None if args.no_report or not config.save_data else Reports()
-        result = run_batch(config, ask=ask, on_simulation=reports)
-    except (BatchError, storage.StorageError) as err:
-        raise UsageError(str(err)) from None
+    config = build_config(args)  # bad input: a UserError, which `magna` prints (exit status 2)
+    ask = ask_policy if sys.stdin is not None and sys.stdin.isatty() else None
+    reports = None if args.no_report or not config.save_data else Reports()
+    result = run_batch(config, ask=ask, on_simulation=reports)
     print(format_summary(result), flush=True)
     saved = result.dataset_dir is not None and result.dataset_dir.is_dir()
     if saved and not result.interrupted:

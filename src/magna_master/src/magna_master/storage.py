@@ -1,6 +1,7 @@
 """Where simulation batches keep their data, and what happens when a run would meet older data.
 
-The tree (src/magna_master/README.md, Storage)::
+The tree (its paths in magna_common.storage_tree; result.json and a summary.csv row are
+magna_common.records' SimulationResult and SummaryRow)::
 
     <data root>/Simulations/<world>/<subworld>/<mission>/<submission>/<name>/dataset_<n>/
         summary.csv                  one row per simulation, rewritten atomically after each one
@@ -24,37 +25,22 @@ Nothing here imports ROS: the batch loop and the tests use it directly.
 """
 from __future__ import annotations
 
-import csv
 import errno
 import fcntl
-import io
-import json
 import os
 import shutil
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from magna_common.files import write_text_atomically
+from magna_common.records import RecordError, SimulationResult, SummaryRow
 from magna_common.storage_tree import (
-    DEFAULT_DATA_ROOT,
-    DEFAULT_NAME,
     RESULT_FILE,
-    SUMMARY_COLUMNS,
     SUMMARY_FILE,
     StorageError,
-    StorageKey,
-    check_component,
     existing_simulations,
     simulation_dir,
 )
-
-# The tree's names are re-exported: the Master's modules know them as storage.X.
-__all__ = ["ABORT", "APPEND", "DEFAULT_DATA_ROOT", "DEFAULT_NAME", "OVERWRITE", "POLICIES", "RESULT_FILE",
-           "SKIP_SAVE", "SUMMARY_COLUMNS", "SUMMARY_FILE", "DatasetLock", "StorageConflict", "StorageError",
-           "StorageKey", "StoragePlan", "ask_policy", "check_component", "existing_simulations", "plan_storage",
-           "prepare_simulation_dir", "read_result", "read_summary", "remove_summary_row", "simulation_dir",
-           "summary_row", "update_summary", "write_result", "write_summary"]
 
 APPEND, OVERWRITE, SKIP_SAVE, ABORT = "append", "overwrite", "skip-save", "abort"
 POLICIES = (APPEND, OVERWRITE, SKIP_SAVE, ABORT)
@@ -89,82 +75,41 @@ def _id_ranges(ids: Iterable[int], prefix: str = "") -> str:
 
 # --- result.json and summary.csv ---------------------------------------------------------------------------
 
-def write_result(sim_dir: Path, result: dict) -> Path:
+def write_result(sim_dir: Path, result: SimulationResult) -> Path:
     """result.json of one simulation, atomically."""
-    path = Path(sim_dir) / RESULT_FILE
-    write_text_atomically(path, json.dumps(result, indent=2, sort_keys=True, default=str) + "\n", overwrite=True)
-    return path
+    return result.write(Path(sim_dir) / RESULT_FILE)
 
 
-def read_result(path: Path) -> dict | None:
+def read_result(path: Path) -> SimulationResult | None:
     """A result.json, or None when missing or unreadable (a simulation that never finished writing it)."""
     try:
-        data = json.loads(Path(path).read_text())
-    except (OSError, ValueError):
+        return SimulationResult.read(path)
+    except RecordError:
         return None
-    return data if isinstance(data, dict) else None
 
 
-# --- summary.csv ---------------------------------------------------------------------------------------------
-
-def summary_row(result: dict) -> dict[str, str]:
-    """The summary.csv row of one result.json."""
-    return {
-        "id": str(int(result["id"])),
-        "success": "True" if result.get("success") else "False",
-        "outcome": str(result.get("outcome", "")),
-        "message": " ".join(str(result.get("message", "")).split()),  # one line per row
-        "duration": f"{float(result.get('sim_duration') or 0.0):.3f}",
-        "wall_time": f"{float(result.get('wall_time') or 0.0):.3f}",
-        "collisions": str(int(result.get("collisions") or 0)),
-    }
-
-
-def read_summary(dataset_dir: Path) -> list[dict[str, str]]:
+def read_summary(dataset_dir: Path) -> list[SummaryRow]:
     """The rows of a dataset's summary.csv (none when it does not exist)."""
-    path = Path(dataset_dir) / SUMMARY_FILE
     try:
-        text = path.read_text()
-    except FileNotFoundError:
-        return []
-    return [dict(row) for row in csv.DictReader(io.StringIO(text))]
+        return SummaryRow.read(Path(dataset_dir) / SUMMARY_FILE)
+    except RecordError as err:
+        if err.missing:
+            return []
+        raise
 
 
-def _row_key(row: dict) -> tuple:
-    try:
-        return (0, int(row.get("id", "")), "")
-    except ValueError:
-        return (1, 0, str(row.get("id")))
-
-
-def write_summary(dataset_dir: Path, rows: Iterable[dict]) -> Path:
-    """Write summary.csv atomically, rows sorted by id; columns beyond SUMMARY_COLUMNS are kept after them."""
-    rows = sorted(rows, key=_row_key)
-    extra = []
-    for row in rows:
-        extra.extend(k for k in row if k not in SUMMARY_COLUMNS and k not in extra and k is not None)
-    out = io.StringIO()
-    writer = csv.DictWriter(out, fieldnames=[*SUMMARY_COLUMNS, *extra], extrasaction="ignore", lineterminator="\n")
-    writer.writeheader()
-    for row in rows:
-        writer.writerow({k: row.get(k, "") for k in (*SUMMARY_COLUMNS, *extra)})
-    path = Path(dataset_dir) / SUMMARY_FILE
-    write_text_atomically(path, out.getvalue(), overwrite=True)
-    return path
-
-
-def update_summary(dataset_dir: Path, result: dict) -> Path:
+def update_summary(dataset_dir: Path, result: SimulationResult) -> Path:
     """Put (or replace) the row of `result` in summary.csv, keeping every other row."""
-    row = summary_row(result)
-    rows = [r for r in read_summary(dataset_dir) if r.get("id") != row["id"]]
-    return write_summary(dataset_dir, [*rows, row])
+    row = SummaryRow.of(result)
+    rows = [r for r in read_summary(dataset_dir) if r.id != row.id]
+    return SummaryRow.write(Path(dataset_dir) / SUMMARY_FILE, [*rows, row])
 
 
 def remove_summary_row(dataset_dir: Path, m: int) -> None:
     rows = read_summary(dataset_dir)
-    kept = [r for r in rows if r.get("id") != str(m)]
+    kept = [r for r in rows if r.id != m]
     if len(kept) != len(rows):
-        write_summary(dataset_dir, kept)
+        SummaryRow.write(Path(dataset_dir) / SUMMARY_FILE, kept)
 
 
 # --- planning a batch -------------------------------------------------------------------------------------------

@@ -24,6 +24,7 @@ master). The supervisor
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import datetime
 import json
 import os
@@ -36,7 +37,6 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from magna_common.files import write_text_atomically
 from magna_common.processes import (
     TOKEN_ENV,
     ancestors,
@@ -45,19 +45,19 @@ from magna_common.processes import (
     pid_alive,
     set_parent_death_signal,
 )
-from magna_common.storage_tree import RESULT_FILE
+from magna_common.records import (
+    CRASHED,
+    GROUND_STATION,
+    INTERRUPTED,
+    START_FAILED,
+    TIME_LIMIT,
+    SimulationResult,
+)
+from magna_common.ros_names import GS_STOP, MASTER_TERMINATION
+from magna_common.storage_tree import LOGS_DIR, RESULT_FILE
 
-TERMINATION_SERVICE = "/magna/master/simulation_termination"
-GS_STOP_SERVICE = "/magna/gs/stop"
 STOP_RETRY = 0.2  # wall s between calls of the stop service while it is not served yet
-
-# How a simulation ended (result.json "termination").
-GROUND_STATION = "ground_station"  # the ground station called the termination service
-TIME_LIMIT = "time_limit"  # the wall-clock limit passed first
-CRASHED = "crashed"  # the launch ended without calling the service
-INTERRUPTED = "interrupted"  # Ctrl-C / SIGTERM reached the batch or the supervisor
-START_FAILED = "start_failed"  # the launch command could not be started
-SUPERVISOR_FAILED = "supervisor_failed"  # the supervisor ended without a result (written by the batch)
+NODE_NAME = "magna_master_supervisor"
 
 
 def log_tail(path: Path | None, lines: int = 6, limit: int = 600) -> str:
@@ -104,7 +104,7 @@ class SupervisorCore:
 
     def __init__(self, command: Sequence[str], result_path: Path, log_path: Path, data_dir: Path | None = None,
                  time_limit: float | None = None, stop_grace: float = 15.0, settle: float = 5.0,
-                 shutdown_timeout: float = 10.0, extra: dict | None = None, token: str | None = None,
+                 shutdown_timeout: float = 10.0, known: SimulationResult | None = None, token: str | None = None,
                  stop_ground_station: Callable[[], bool] | None = None, poll: float = 0.05):
         self.command = list(command)
         self.result_path = Path(result_path)
@@ -114,7 +114,7 @@ class SupervisorCore:
         self.stop_grace = stop_grace
         self.settle = settle
         self.shutdown_timeout = shutdown_timeout
-        self.extra = dict(extra or {})
+        self.known = known or SimulationResult()  # what the batch knows before the run: id, seed, files...
         self.token = token
         self.stop_ground_station = stop_ground_station or (lambda: False)
         self.poll = poll
@@ -139,8 +139,7 @@ class SupervisorCore:
             self._termination_wall = time.monotonic() - start
             result = self._result(GROUND_STATION, launch_exit_code=None, leftovers=[], gs_stop_called=False,
                                   timed_out=False)
-            result["final"] = False  # rewritten once the launch is down
-            self._write(result)
+            self._write(dataclasses.replace(result, final=False))  # rewritten once the launch is down
         self._wake.set()
         return True
 
@@ -155,7 +154,7 @@ class SupervisorCore:
         with self._lock:
             return self._termination
 
-    def run(self) -> dict:
+    def run(self) -> SimulationResult:
         self.log_path.parent.mkdir(parents=True, exist_ok=True)
         self._started = time.monotonic()
         try:
@@ -224,7 +223,7 @@ class SupervisorCore:
     # the result --------------------------------------------------------------------------------------------------
 
     def _result(self, kind: str, launch_exit_code: int | None, leftovers: list[str], gs_stop_called: bool,
-                timed_out: bool, message: str = "", end_wall: float | None = None) -> dict:
+                timed_out: bool, message: str = "", end_wall: float | None = None) -> SimulationResult:
         reported = self._termination
         if reported is not None:
             wall = self._termination_wall
@@ -238,62 +237,59 @@ class SupervisorCore:
             success = False
             outcome = reported.outcome if reported is not None else TIME_LIMIT
             note = (f"time limit of {self.time_limit:g} s (wall clock) reached; "
-                    + (f"{GS_STOP_SERVICE} was called" if gs_stop_called else f"{GS_STOP_SERVICE} is not served"))
+                    + (f"{GS_STOP} was called" if gs_stop_called else f"{GS_STOP} is not served"))
             message = note + (f"; the ground station said: {reported.message}" if reported is not None
-                              else f"; it did not call {TERMINATION_SERVICE}")
+                              else f"; it did not call {MASTER_TERMINATION}")
         elif kind == INTERRUPTED:
             success, outcome = False, INTERRUPTED
             message = "interrupted (Ctrl-C or SIGTERM) before the ground station reported"
         elif kind == CRASHED:
             success, outcome = False, CRASHED
             tail = log_tail(self.log_path)
-            message = (f"the launch exited with status {launch_exit_code} without calling {TERMINATION_SERVICE}"
+            message = (f"the launch exited with status {launch_exit_code} without calling {MASTER_TERMINATION}"
                        + (f"; last lines of {self.log_path.name}: {tail}" if tail else ""))
         else:
             success, outcome = False, kind
-        result = {
-            **self.extra,
-            "success": bool(success),
-            "outcome": outcome,
-            "message": message,
-            "sim_duration": float(reported.sim_duration) if reported is not None else 0.0,
-            "collisions": int(reported.collisions) if reported is not None else 0,
-            "wall_time": round(float(wall), 3),
-            "mission_wall_time": round(reported.wall_duration, 3) if reported is not None else 0.0,
-            "setup_wall_time": round(reported.setup_wall_duration, 3) if reported is not None else 0.0,
-            "termination": kind,
-            "reported": reported is not None,
-            "time_limit": self.time_limit,
-            "timed_out": timed_out,
-            "gs_stop_called": gs_stop_called,
-            "launch_command": self.command,
-            "launch_pid": self.launch.pid if self.launch is not None else None,
-            "launch_exit_code": launch_exit_code,
-            "supervisor_pid": os.getpid(),
-            "leftover_processes_killed": leftovers,
-            "started_at": self._started_at,
-            "ended_at": _now(),
-            "files": self._files(),
-            "final": True,
-        }
-        return result
+        return dataclasses.replace(
+            self.known,
+            success=bool(success),
+            outcome=outcome,
+            message=message,
+            sim_duration=float(reported.sim_duration) if reported is not None else 0.0,
+            collisions=int(reported.collisions) if reported is not None else 0,
+            wall_time=round(float(wall), 3),
+            mission_wall_time=round(reported.wall_duration, 3) if reported is not None else 0.0,
+            setup_wall_time=round(reported.setup_wall_duration, 3) if reported is not None else 0.0,
+            termination=kind,
+            reported=reported is not None,
+            time_limit=self.time_limit,
+            timed_out=timed_out,
+            gs_stop_called=gs_stop_called,
+            launch_command=tuple(self.command),
+            launch_pid=self.launch.pid if self.launch is not None else None,
+            launch_exit_code=launch_exit_code,
+            supervisor_pid=os.getpid(),
+            leftover_processes_killed=tuple(leftovers),
+            started_at=self._started_at,
+            ended_at=_now(),
+            files=self._files(),
+            final=True,
+        )
 
-    def _files(self) -> list[str]:
+    def _files(self) -> tuple[str, ...]:
         if self.data_dir is None or not self.data_dir.is_dir():
-            return []
+            return ()
         skip = {RESULT_FILE}
         files = []
         for path in sorted(self.data_dir.rglob("*")):
             relative = path.relative_to(self.data_dir)
-            if path.is_file() and relative.parts[0] != "logs" and relative.name not in skip \
+            if path.is_file() and relative.parts[0] != LOGS_DIR and relative.name not in skip \
                     and not relative.name.startswith("."):
                 files.append(str(relative))
-        return files
+        return tuple(files)
 
-    def _write(self, result: dict) -> None:
-        self.result_path.parent.mkdir(parents=True, exist_ok=True)
-        write_text_atomically(self.result_path, json.dumps(result, indent=2, sort_keys=True, default=str) + "\n",
-                              overwrite=True)
+    def _write(self, result: SimulationResult) -> None:
+        result.write(self.result_path)
 
 
 # --- the ROS node ------------------------------------------------------------------------------------------------
@@ -305,14 +301,14 @@ def _ros_stop_ground_station(timeout: float = 5.0) -> Callable[[], bool]:
         from std_srvs.srv import Trigger
 
         try:
-            rosgraph.Master(rospy.get_name()).lookupService(GS_STOP_SERVICE)
+            rosgraph.Master(rospy.get_name()).lookupService(GS_STOP)
         except Exception:  # not served (rosgraph.MasterError) or the master is gone
             return False
         outcome = {}
 
         def call():
             try:
-                outcome["response"] = rospy.ServiceProxy(GS_STOP_SERVICE, Trigger)()
+                outcome["response"] = rospy.ServiceProxy(GS_STOP, Trigger)()
             except Exception as err:  # the ground station died meanwhile
                 outcome["error"] = err
 
@@ -331,12 +327,13 @@ def parse_args(argv: Sequence[str]) -> argparse.Namespace:
     parser.add_argument("--data-dir", default="", help="the ground station's folder (its files are listed)")
     parser.add_argument("--time-limit", type=float, default=0.0, help="wall-clock seconds; 0: none")
     parser.add_argument("--stop-grace", type=float, default=15.0,
-                        help=f"seconds to wait after {GS_STOP_SERVICE} before ending the launch")
+                        help=f"seconds to wait after {GS_STOP} before ending the launch")
     parser.add_argument("--settle", type=float, default=5.0,
                         help="seconds the launch gets to exit by itself after the termination call")
     parser.add_argument("--shutdown-timeout", type=float, default=10.0,
                         help="seconds between SIGINT, SIGTERM and SIGKILL when ending the launch")
-    parser.add_argument("--extra", default="{}", help="JSON object merged into result.json")
+    parser.add_argument("--extra", default="{}",
+                        help="result.json's fields the batch knows (JSON: id, seed, hyperparameters, files)")
     parser.add_argument("--parent-pid", type=int, default=0, help="stop when this process (the batch) dies")
     parser.add_argument("command", nargs=argparse.REMAINDER, help="-- COMMAND ARGS...")
     args = parser.parse_args(argv)
@@ -355,7 +352,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parse_args(sys.argv[1:] if argv is None else argv)
     core = SupervisorCore(args.command, args.result, args.log, data_dir=args.data_dir or None,
                           time_limit=args.time_limit, stop_grace=args.stop_grace, settle=args.settle,
-                          shutdown_timeout=args.shutdown_timeout, extra=args.extra,
+                          shutdown_timeout=args.shutdown_timeout,
+                          known=SimulationResult.from_dict(args.extra, "--extra"),
                           token=os.environ.get(TOKEN_ENV), stop_ground_station=_ros_stop_ground_station())
     for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         signal.signal(sig, lambda *_: core.request_stop())
@@ -367,7 +365,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     import rospy
     from magna_msgs.srv import SimulationTermination, SimulationTerminationResponse
 
-    rospy.init_node("magna_master_supervisor", disable_signals=True)
+    rospy.init_node(NODE_NAME, disable_signals=True)
 
     def handle(request):
         acknowledged = core.on_termination(Termination(
@@ -376,12 +374,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             wall_duration=float(request.wall_duration), setup_wall_duration=float(request.setup_wall_duration)))
         return SimulationTerminationResponse(acknowledged=acknowledged)
 
-    service = rospy.Service(TERMINATION_SERVICE, SimulationTermination, handle)
+    service = rospy.Service(MASTER_TERMINATION, SimulationTermination, handle)
     try:
         result = core.run()
     finally:
         service.shutdown()
-    print(f"supervisor: {result['termination']}: {result['outcome']} ({result['message']})", flush=True)
+    print(f"supervisor: {result.termination}: {result.outcome} ({result.message})", flush=True)
     if args.parent_pid and os.getppid() != args.parent_pid:
         # The batch died (SIGKILL, a crash) and cannot stop this simulation's master any more: do it for it.
         end_orphaned_master()
@@ -393,7 +391,7 @@ def end_orphaned_master(timeout: float = 5.0) -> int | None:
     import rosgraph
 
     try:
-        pid = int(rosgraph.Master("/magna_master_supervisor").getPid())
+        pid = int(rosgraph.Master(f"/{NODE_NAME}").getPid())
     except Exception:  # already gone
         return None
     for sig in (signal.SIGTERM, signal.SIGKILL):

@@ -18,10 +18,11 @@ from pathlib import Path
 
 import numpy as np
 
+from magna_common.search_path import find_world_file, world_folders
 from magna_worlds.draw import OBSTACLE_COLOR, obstacle_spec
 from magna_worlds.errors import WorldError
 from magna_worlds.generate import ResolvedWorld, resolve_world
-from magna_worlds.loader import default_search_path, find_world_file, load_world
+from magna_worlds.loader import load_world
 from magna_worlds.shapes import ShapeSpec
 from magna_worlds.transforms import Frame
 
@@ -66,7 +67,7 @@ def world_from_record(record_file: Path, search_path: list[Path] | None = None) 
         raise ValueError(f"{record_file}: cannot read the world record: {err}") from None
     if not isinstance(data, dict) or not isinstance(data.get("parts"), dict):
         raise ValueError(f"{record_file}: not a world node record (expected {{\"seed\", \"parts\": {{...}}}})")
-    search = default_search_path() if search_path is None else list(search_path)
+    search = world_folders() if search_path is None else list(search_path)
     world = RecordedWorld()
     sources = []
     boxes = []

@@ -56,10 +56,11 @@ def _sim_dir_inputs(sim_dir: Path):
 
 def _world_record(world: str, subworld: str, worlds_path: list[Path], seed: int) -> dict | None:
     try:
+        from magna_common.search_path import find_world_file, world_folders
         from magna_worlds.generate import resolve_world, world_record
-        from magna_worlds.loader import default_search_path, find_world_file, load_world
+        from magna_worlds.loader import load_world
 
-        found = find_world_file(world, subworld, [*worlds_path, *default_search_path()])
+        found = find_world_file(world, subworld, [*worlds_path, *world_folders()])
         if found is None:
             return None
         return {"parts": {"main": world_record(resolve_world(load_world(found), seed))}}

@@ -4,9 +4,9 @@
     magna world draw WORLD -o world.png [--search-path DIR ...] [--seed N] [--elev E] [--azim A] [--force]
 
 WORLD is a world file, or a name WORLD/SUBWORLD looked up as `magna run` does: WORLD/SUBWORLD.json
-in each --search-path DIR (its worlds/ or Worlds/ first, then DIR itself), then in the project's
-worlds/ and $MAGNA_WORLDS_PATH. A bad world file gets one line on stderr,
-`magna world: <file>: <json path>: <message>`, and exit status 2 (a `magna_master.cli.UsageError`,
+in each --search-path DIR (its worlds/, DIR itself, its Worlds/), then in $MAGNA_WORLDS_PATH and
+the project's worlds/ (magna_common.search_path). A bad world file gets one line on stderr,
+`magna world: <file>: <json path>: <message>`, and exit status 2 (a `magna_common.errors.UsageError`,
 printed by `run`); nothing is written. What the original ROS-MAGNA tolerated gets one line each on
 stderr, `magna world: warning: <file>: <json path>: <what MAGNA does>`; `--strict` refuses it (exit 2).
 """
@@ -21,13 +21,14 @@ from pathlib import Path
 
 from magna_common.cli_vocabulary import OutputExists, add_force, add_output, add_search_path, check_output
 from magna_common.errors import UsageError
+from magna_common.search_path import check_search_dirs, find_world_file, world_candidates, world_folders
 
 HELP = "check a world (a file or a WORLD/SUBWORLD name: load, lay out poses and obstacles, summarise) or draw it"
 
 _LOOKUP = """\
 WORLD is a world file or a name WORLD/SUBWORLD, looked up as WORLD/SUBWORLD.json in each
---search-path DIR (its worlds/ or Worlds/ first, then DIR itself), then in the project's worlds/
-and $MAGNA_WORLDS_PATH, as `magna run --world` does.
+--search-path DIR (its worlds/, DIR itself, its Worlds/), then in $MAGNA_WORLDS_PATH and the
+project's worlds/, as `magna run --world` does.
 """
 
 _EPILOG = _LOOKUP + """
@@ -118,22 +119,15 @@ def run(args) -> int:
 # --- finding and loading -------------------------------------------------------------------------------------------
 
 def world_roots(search_dirs) -> list[Path]:
-    """Where world names are looked up: `magna run`'s order (magna_master.batch.world_roots); UsageError for a
+    """Where world names are looked up (magna_common.search_path, as `magna run` does); UsageError for a
     --search-path folder that does not exist."""
-    from magna_master.batch import world_roots as run_world_roots
-
-    for directory in search_dirs:
-        if not Path(directory).expanduser().is_dir():
-            raise UsageError(f"--search-path {directory}: no such folder; give a folder holding worlds/ (or "
-                             "Worlds/, or the WORLD folders themselves)")
-    return run_world_roots(search_dirs)
+    check_search_dirs(search_dirs)
+    return world_folders(search_dirs)
 
 
 def find_world(spec: str, search_dirs=(), option: str = "") -> Path:
     """The world file `spec` names: an existing file as it is, else a name WORLD/SUBWORLD (a trailing .json
     dropped) looked up in `world_roots(search_dirs)`. UsageError naming every place looked at."""
-    from magna_worlds.loader import candidate_paths, find_world_file
-
     roots = world_roots(search_dirs)
     path = Path(spec).expanduser()
     if path.is_file():
@@ -147,7 +141,7 @@ def find_world(spec: str, search_dirs=(), option: str = "") -> Path:
     found = find_world_file(world, subworld, roots)
     if found is None:
         raise UsageError(f"{label}: no such file, nor a world WORLD/SUBWORLD of that name; looked at "
-                         f"{candidate_paths(world, subworld, roots)}. Give a file path, or add the folder "
+                         f"{world_candidates(world, subworld, roots)}. Give a file path, or add the folder "
                          "holding it with --search-path DIR")
     return found
 

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from collections.abc import Iterable
 from dataclasses import dataclass, replace
 from numbers import Real
@@ -34,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from magna_common.search_path import find_world_file, world_candidates, world_folders
 from magna_worlds.errors import WorldError, join_path
 from magna_worlds.migrate import Migration, migrate
 from magna_worlds.model import (
@@ -52,7 +52,6 @@ from magna_worlds.model import (
 from magna_worlds.shapes import SHAPES, ShapeError, half_extents, parse_shape
 from magna_worlds.transforms import Frame, quaternions_from_rpy
 
-PROJECT_WORLDS = Path(__file__).resolve().parents[4] / "worlds"  # <repo>/worlds, beside src/
 BOUNDARY_MARGIN = 10.0  # m around the geometries, when a file gives no world_boundaries
 IGNORED_SET_TYPES = ("path",)  # read by the oldest format only; later code skipped it without a word
 
@@ -89,18 +88,12 @@ class CheckedWorld:
     changes: tuple[str, ...]  # what the migration of an older format changed
 
 
-def default_search_path() -> list[Path]:
-    """Where included worlds are looked for after the including file's own root: $MAGNA_WORLDS_PATH, then worlds/."""
-    extra = [Path(p) for p in os.environ.get("MAGNA_WORLDS_PATH", "").split(os.pathsep) if p]
-    return [*extra, PROJECT_WORLDS]
-
-
 def load_world(path, search_path: Iterable[Path] | None = None, strict: bool = False) -> World:
     """Load and check a world file; raises WorldError. `strict` refuses what would be a warning."""
     path = Path(path)
     data = _read_json(path, str(path))
     return world_from_data(data, str(path), base=path.parent.parent,
-                           search_path=default_search_path() if search_path is None else list(search_path),
+                           search_path=world_folders() if search_path is None else list(search_path),
                            strict=strict)
 
 
@@ -124,19 +117,6 @@ def world_from_data(data: Any, source: str, base: Path | None = None,
     else:
         boundaries_required = True
     return reader.world(data, source, base, boundaries_required)
-
-
-def find_world_file(world: str, subworld: str, search_path: Iterable[Path]) -> Path | None:
-    for root in search_path:
-        candidate = Path(root) / world / f"{subworld}.json"
-        if candidate.is_file():
-            return candidate
-    return None
-
-
-def candidate_paths(world: str, subworld: str, search_path: Iterable[Path]) -> str:
-    """Where `find_world_file` looked, for an error message."""
-    return ", ".join(str(Path(r) / world / f"{subworld}.json") for r in search_path) or "nowhere (no search path)"
 
 
 def _read_json(path: Path, source: str) -> Any:
@@ -252,7 +232,7 @@ class _Loader:
         roots = ([base] if base is not None else []) + self.search_path
         found = find_world_file(world, subworld, roots)
         if found is None:
-            looked = candidate_paths(world, subworld, roots)
+            looked = world_candidates(world, subworld, roots)
             raise WorldError(f.source, where, f"included world {world}/{subworld} not found; looked at {looked}. "
                              "Fix world/subworld or add its folder to MAGNA_WORLDS_PATH")
         key = str(found.resolve())

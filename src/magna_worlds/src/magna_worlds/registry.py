@@ -11,15 +11,10 @@ import os
 import tempfile
 from pathlib import Path
 
+from magna_common.search_path import find_world_file, world_candidates, world_folders
 from magna_worlds.errors import WorldError
 from magna_worlds.generate import ResolvedWorld, resolve_world, world_record
-from magna_worlds.loader import (
-    candidate_paths,
-    default_search_path,
-    find_world_file,
-    load_world,
-    world_from_data,
-)
+from magna_worlds.loader import load_world, world_from_data
 from magna_worlds.query import PoseQueries, QueryResult
 from magna_worlds.transforms import Frame
 
@@ -27,7 +22,7 @@ from magna_worlds.transforms import Frame
 class WorldRegistry:
     def __init__(self, seed: int = 0, search_path: list[Path] | None = None):
         self.seed = seed
-        self.search_path = default_search_path() if search_path is None else list(search_path)
+        self.search_path = world_folders() if search_path is None else list(search_path)
         self.parts: dict[str, ResolvedWorld] = {}
         self.queries = PoseQueries(seed)
         self.query_frames: dict[str, list[tuple[str, str, Frame]]] = {}  # part id -> frames made by queries
@@ -40,7 +35,7 @@ class WorldRegistry:
     def add_named(self, part_id: str, world: str, subworld: str) -> ResolvedWorld:
         found = find_world_file(world, subworld, self.search_path)
         if found is None:
-            looked = candidate_paths(world, subworld, self.search_path)
+            looked = world_candidates(world, subworld, self.search_path)
             raise WorldError(f"{world}/{subworld}", "", f"no such world; looked at {looked}")
         return self.add_file(part_id, found)
 

@@ -14,6 +14,7 @@ import sys
 from collections import Counter
 from pathlib import Path
 
+from magna_common import search_path
 from magna_common.cli_vocabulary import OutputExists, add_force, add_output, add_search_path, check_output
 from magna_common.errors import UsageError
 
@@ -21,10 +22,10 @@ HELP = "check a mission (a file or a MISSION/SUBMISSION name; structure, and aga
 
 _LOOKUP = """\
 MISSION is a mission file or a name MISSION/SUBMISSION, looked up as MISSION/SUBMISSION.json in
-each --search-path DIR (its missions/ or Missions/, and DIR itself), then $MAGNA_MISSIONS_PATH, then
-the project's missions/. WORLD likewise: a file or WORLD/SUBWORLD, in each DIR's worlds/ or Worlds/
-(and DIR itself), then the project's worlds/ and $MAGNA_WORLDS_PATH. `magna run` looks them up
-the same way.
+each --search-path DIR (its missions/, DIR itself, its Missions/), then $MAGNA_MISSIONS_PATH, then
+the project's missions/. WORLD likewise: a file or WORLD/SUBWORLD, in each DIR's worlds/, DIR
+itself and its Worlds/, then $MAGNA_WORLDS_PATH and the project's worlds/. `magna run` looks them
+up the same way (magna_common.search_path).
 """
 
 _EPILOG = _LOOKUP + """
@@ -127,21 +128,10 @@ def run(args) -> int:
 # --- loading ---------------------------------------------------------------------------------------------------
 
 def mission_folders(search_dirs) -> list[Path]:
-    """Where mission names are looked up, as `magna run` does (magna_master.batch.find_mission): each DIR's
-    missions/ (when there) and DIR itself (the finder also tries their Missions/), then $MAGNA_MISSIONS_PATH and
-    the project's missions/. UsageError for a --search-path folder that does not exist."""
-    from magna_gs.mission.loader import default_search_path
-
-    folders: list[Path] = []
-    for directory in search_dirs:
-        directory = Path(directory).expanduser()
-        if not directory.is_dir():
-            raise UsageError(f"--search-path {directory}: no such folder; give a folder holding missions/ and "
-                             "worlds/ (or Missions/ and Worlds/, as ROS-MAGNA's Code/JSONs)")
-        if (directory / "missions").is_dir():
-            folders.append(directory / "missions")
-        folders.append(directory)
-    return [*folders, *[f for f in default_search_path() if f not in folders]]
+    """Where mission names are looked up (magna_common.search_path, as `magna run` does); UsageError for a
+    --search-path folder that does not exist."""
+    search_path.check_search_dirs(search_dirs)
+    return search_path.mission_folders(search_dirs)
 
 
 def _load(args):

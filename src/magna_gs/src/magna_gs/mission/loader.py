@@ -5,26 +5,24 @@
     load_mission(path, strict=True)   # warnings are problems too (MissionError)
 
 Missions are also found by name, `<mission>/<submission>` as the hyperparameters give
-them (`find_mission("Gym/2UAVs_2paths_Central_Cylinder")`), in each folder of the search
-path: `--search-path` folders first, then `$MAGNA_MISSIONS_PATH`, then the project's
-`missions/`; a folder may also be a ROS-MAGNA tree whose missions sit in `Missions/`.
+them (`find_mission("Gym/2UAVs_2paths_Central_Cylinder")`), along the search path of
+magna_common.search_path: `--search-path` folders first, then `$MAGNA_MISSIONS_PATH`, then
+the project's `missions/`; a folder may also be a ROS-MAGNA tree whose missions sit in `Missions/`.
 Every problem is a `MissionError` line `file: JSON.path: message`.
 """
 from __future__ import annotations
 
 import json
-import os
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from magna_common.search_path import MISSIONS, candidates, find, looked_at, mission_folders
 from magna_gs.mission.migrate import migrate
 from magna_gs.mission.model import Mission, MissionError
 from magna_gs.mission.parse import parse_mission
 from magna_gs.mission.plan import Plan
 
-PROJECT_MISSIONS = Path(__file__).resolve().parents[5] / "missions"  # <repo>/missions, beside src/
-CORPUS_SUBFOLDER = "Missions"  # a ROS-MAGNA tree keeps its missions here
 STRICT_NOTE = "[refused: strict mode turns warnings into errors]"
 
 
@@ -36,29 +34,13 @@ class LoadedMission:
     plan: Plan | None = None  # the expanded states (None when loaded with validate=False)
 
 
-def default_search_path() -> list[Path]:
-    """$MAGNA_MISSIONS_PATH (os.pathsep-separated), then the project's missions/."""
-    extra = [Path(p) for p in os.environ.get("MAGNA_MISSIONS_PATH", "").split(os.pathsep) if p]
-    return [*extra, PROJECT_MISSIONS]
-
-
-def candidate_paths(name: str, search_path: Iterable[Path]) -> list[Path]:
-    """Where a mission `<mission>/<submission>` may be, in the order looked at."""
-    relative = Path(name if name.endswith(".json") else f"{name}.json")
-    out = []
-    for folder in search_path:
-        out += [Path(folder) / relative, Path(folder) / CORPUS_SUBFOLDER / relative]
-    return out
-
-
 def find_mission(name: str, search_path: Iterable[Path] | None = None) -> Path:
     """The file of mission `name` ("Gym/2UAVs_2paths_Central_Cylinder"); MissionError saying where it looked."""
-    folders = default_search_path() if search_path is None else list(search_path)
-    candidates = candidate_paths(name, folders)
-    for candidate in candidates:
-        if candidate.is_file():
-            return candidate
-    looked = ", ".join(str(c) for c in candidates) or "nowhere (empty search path)"
+    folders = mission_folders() if search_path is None else list(search_path)
+    found = find(MISSIONS, name, folders)
+    if found is not None:
+        return found
+    looked = looked_at(candidates(MISSIONS, name, folders))
     raise MissionError(f"{name}: no such mission; looked at {looked}. Give a file path, or add the folder holding "
                        "<mission>/<submission>.json with --search-path or $MAGNA_MISSIONS_PATH")
 

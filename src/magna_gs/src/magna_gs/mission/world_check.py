@@ -46,11 +46,12 @@ def pose_definitions(mission: Mission) -> list[PoseDefinition]:
 
 def inline_world_parts(mission: Mission, seed: int = 0, search_path: Iterable[Path] | None = None):
     """(resolved parts, problems) for the world parts the mission writes inline."""
+    from magna_common.search_path import world_folders
     from magna_worlds.errors import WorldError
     from magna_worlds.generate import resolve_world
-    from magna_worlds.loader import default_search_path, world_from_data
+    from magna_worlds.loader import world_from_data
 
-    folders = default_search_path() if search_path is None else list(search_path)
+    folders = world_folders() if search_path is None else list(search_path)
     parts, problems = [], []
     for node in mission.nodes():
         params = node.parameters
