@@ -14,11 +14,13 @@ from __future__ import annotations
 
 import zlib
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from magna_worlds.errors import WorldError, join_path
+from magna_common.json_fields import join_path
+from magna_worlds.errors import WorldError
 from magna_worlds.model import Geometry, ObstacleSpec, PoseSetSpec, Volume, World
 from magna_worlds.posesets import (
     LayoutError,
@@ -163,13 +165,14 @@ def _place_geometry(volume: Volume, geometry: Geometry, seed: int) -> PlacedGeom
             field_name, _, message = str(err).partition(": ")
             raise WorldError(volume.source, join_path(spec.source_path, field_name), message) from None
         if spec.use == "obstacles":
+            assert spec.obstacle is not None, "the loader gives every set of obstacles its ObstacleSpec"
             placed.obstacles += _obstacles(placed, spec.obstacle, positions, quaternions, obstacles, rng)
             obstacles += len(positions)
             continue
         if cells is not None:
             tag = "" if matrices == 0 else f"_set{index}"
             names = [f"{placed.base_name}{tag}_pos_{i}_{j}_{k}" for i, j, k in cells]
-            cell_rows = {tuple(int(c) for c in cell): row for row, cell in enumerate(cells)}
+            cell_rows = {(int(i), int(j), int(k)): row for row, (i, j, k) in enumerate(cells)}
             matrices += 1
         else:
             names = [f"{placed.base_name}_pos_{listed + n}" for n in range(len(positions))]
@@ -184,7 +187,9 @@ def _place_geometry(volume: Volume, geometry: Geometry, seed: int) -> PlacedGeom
     return placed
 
 
-def _layout(geometry: Geometry, spec: PoseSetSpec, rng: np.random.Generator):
+def _layout(geometry: Geometry, spec: PoseSetSpec,
+            rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """Positions (N, 3) and quaternions (N, 4) of a set, in the geometry frame, and a matrix's cells (N, 3)."""
     cells = None
     if spec.type == "matrix":
         positions, cells = matrix_layout(geometry.spec, spec)
@@ -201,7 +206,7 @@ def _layout(geometry: Geometry, spec: PoseSetSpec, rng: np.random.Generator):
     return positions, orientations(spec.orientation, len(positions), rng), cells
 
 
-def _obstacles(placed: PlacedGeometry, spec: ObstacleSpec, positions, quaternions, first: int,
+def _obstacles(placed: PlacedGeometry, spec: ObstacleSpec, positions: np.ndarray, quaternions: np.ndarray, first: int,
                rng: np.random.Generator) -> list[Obstacle]:
     frame = placed.frame
     map_positions = frame.apply(positions)
@@ -249,7 +254,7 @@ def _check_unique_frames(resolved: ResolvedWorld) -> None:
         seen[child] = parent
 
 
-def world_record(resolved: ResolvedWorld) -> dict:
+def world_record(resolved: ResolvedWorld) -> dict[str, Any]:
     """The resolved world as JSON-ready data: what the simulation flew in (every pose and obstacle, in map)."""
     w = resolved.world
     geometries = []

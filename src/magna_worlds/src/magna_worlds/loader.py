@@ -27,33 +27,26 @@ import json
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass, replace
-from numbers import Real
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, Never
 
 import numpy as np
 
+from magna_common.json_fields import JsonFields, join_path, located
 from magna_common.search_path import find_world_file, world_candidates, world_folders
-from magna_worlds.errors import WorldError, join_path
-from magna_worlds.migrate import Migration, migrate
-from magna_worlds.model import (
-    MATRIX_TYPES,
-    POSE_SET_TYPES,
-    SENSES,
-    SHAPES_FOR_ZIGZAG,
-    USES,
-    Geometry,
-    ObstacleSpec,
-    OrientationSpec,
-    PoseSetSpec,
-    Volume,
-    World,
-)
-from magna_worlds.shapes import SHAPES, ShapeError, half_extents, parse_shape
+from magna_worlds.errors import WorldError
+from magna_worlds.migrate import migrate
+from magna_worlds.model import SHAPES_FOR_ZIGZAG, Geometry, ObstacleSpec, OrientationSpec, PoseSetSpec, Volume, World
+from magna_worlds.shapes import ShapeError, half_extents, parse_shape
 from magna_worlds.transforms import Frame, quaternions_from_rpy
+from magna_worlds.vocabulary import MATRIX_TYPES, POSE_SET_TYPES, SENSES, SHAPES, USES, Shape
+
+if TYPE_CHECKING:
+    from magna_worlds.generate import ResolvedWorld  # generate imports this module
 
 BOUNDARY_MARGIN = 10.0  # m around the geometries, when a file gives no world_boundaries
 IGNORED_SET_TYPES = ("path",)  # read by the oldest format only; later code skipped it without a word
+Fields = JsonFields[Never]  # a world file stops at its first error
 
 # What a missing field holds, for the message that asks for it (the format in words).
 FIELD_HELP = {
@@ -83,12 +76,12 @@ class CheckedWorld:
     """A world file loaded and laid out once: what `magna world check` reports."""
 
     world: World
-    resolved: Any  # magna_worlds.generate.ResolvedWorld
+    resolved: ResolvedWorld
     warnings: tuple[str, ...]  # of the file and of its lay-out
     changes: tuple[str, ...]  # what the migration of an older format changed
 
 
-def load_world(path, search_path: Iterable[Path] | None = None, strict: bool = False) -> World:
+def load_world(path: str | Path, search_path: Iterable[Path] | None = None, strict: bool = False) -> World:
     """Load and check a world file; raises WorldError. `strict` refuses what would be a warning."""
     path = Path(path)
     data = _read_json(path, str(path))
@@ -97,7 +90,7 @@ def load_world(path, search_path: Iterable[Path] | None = None, strict: bool = F
                            strict=strict)
 
 
-def load_world_checked(path, search_path: Iterable[Path] | None = None, strict: bool = False,
+def load_world_checked(path: str | Path, search_path: Iterable[Path] | None = None, strict: bool = False,
                        seed: int = 0) -> CheckedWorld:
     """Load a world file and lay it out for `seed`: every warning (the file's and the lay-out's) and change."""
     from magna_worlds.generate import resolve_world  # generate imports this module
@@ -160,12 +153,12 @@ class _Loader:
         self.changes: list[str] = []
         self._stack: list[str] = []
 
-    def warn(self, f: _Fields, where: str, message: str) -> None:
+    def warn(self, f: Fields, where: str, message: str) -> None:
         """One warning: what the original tolerated and what MAGNA does with it; an error when strict."""
-        where = f.migration.original_path(where)
+        where = f.original_path(where)
         if self.strict:
             raise WorldError(f.source, where, f"{message} (refused with --strict)")
-        self.warnings.append(f"{f.source}: {where}: {message}" if where else f"{f.source}: {message}")
+        self.warnings.append(f"{located(f.source, where)}: {message}")
 
     # --- world and volumes ------------------------------------------------------------------------------------
 
@@ -174,11 +167,11 @@ class _Loader:
         migration = migrate(data)
         self.changes += [f"{source}: {change}" for change in migration.changes]
         data = migration.data
-        f = _Fields(source, migration)
-        scenario = f.object(f.key(data, "", "scenario"), "scenario")
+        f = JsonFields.first_error(source, WorldError, migration.original_path)
+        scenario = f.object(_key(f, data, "", "scenario"), "scenario")
         boundaries = None
         if "world_boundaries" in scenario:
-            boundaries = f.boundaries(scenario["world_boundaries"], "scenario.world_boundaries")
+            boundaries = _boundaries(f, scenario["world_boundaries"], "scenario.world_boundaries")
         origin_geo = None
         if "origin_geo" in scenario:
             lat, lon, alt = f.numbers(scenario["origin_geo"], "scenario.origin_geo", 3,
@@ -189,7 +182,7 @@ class _Loader:
             origin_geo = (lat, lon, alt)
         self._unknown(f, scenario, "scenario", {"world_boundaries", "origin_geo", "volumes"})
         try:
-            volumes = self.volumes(f, f.list(f.key(scenario, "scenario", "volumes"), "scenario.volumes"),
+            volumes = self.volumes(f, f.list(_key(f, scenario, "scenario", "volumes"), "scenario.volumes"),
                                    "scenario.volumes", base)
         except WorldError as err:  # name the path as the file writes it, before any migration renamed a key
             if err.source != source or migration.original_path(err.path) == err.path:
@@ -215,7 +208,7 @@ class _Loader:
         return World(source, boundaries, origin_geo, tuple(volumes), tuple(self.included), tuple(self.warnings),
                      tuple(self.changes), defaulted)
 
-    def volumes(self, f: _Fields, items: list, path: str, base: Path | None) -> list[Volume]:
+    def volumes(self, f: Fields, items: list, path: str, base: Path | None) -> list[Volume]:
         volumes: list[Volume] = []
         for index, item in enumerate(items):
             where = join_path(path, index)
@@ -226,9 +219,9 @@ class _Loader:
                 volumes.append(self.volume(f, obj, where))
         return volumes
 
-    def include(self, f: _Fields, obj: dict, where: str, base: Path | None) -> list[Volume]:
-        world = f.text(f.key(obj, where, "world"), join_path(where, "world"))
-        subworld = f.text(f.key(obj, where, "subworld"), join_path(where, "subworld"))
+    def include(self, f: Fields, obj: dict, where: str, base: Path | None) -> list[Volume]:
+        world = f.text(_key(f, obj, where, "world"), join_path(where, "world"))
+        subworld = f.text(_key(f, obj, where, "subworld"), join_path(where, "subworld"))
         roots = ([base] if base is not None else []) + self.search_path
         found = find_world_file(world, subworld, roots)
         if found is None:
@@ -243,8 +236,8 @@ class _Loader:
         nested = self.world(_read_json(found, str(found)), str(found), found.parent.parent, boundaries_required=False)
         return list(nested.volumes)
 
-    def volume(self, f: _Fields, obj: dict, where: str) -> Volume:
-        name = f.text(f.key(obj, where, "name"), join_path(where, "name"))
+    def volume(self, f: Fields, obj: dict, where: str) -> Volume:
+        name = f.text(_key(f, obj, where, "name"), join_path(where, "name"))
         if "prefix" in obj:
             prefix = f.text(obj["prefix"], join_path(where, "prefix"))
         else:
@@ -252,17 +245,17 @@ class _Loader:
             self.warn(f, join_path(where, "prefix"), f"missing; the original took the prefix of the volume {name!r} "
                       "already in the running world when this file was added to it as a part (and stopped with an "
                       f"error when there was none); MAGNA uses the volume's name, {name!r}, to name its frames")
-        origin = f.origin(f.key(obj, where, "origin"), join_path(where, "origin"))
+        origin = _origin(f, _key(f, obj, where, "origin"), join_path(where, "origin"))
         permits = f.text(obj.get("permits", ""), join_path(where, "permits"), allow_empty=True)
         self._unknown(f, obj, where, {"name", "prefix", "origin", "permits", "geometries"})
         geometries: list[Geometry] = []
-        items = f.list(f.key(obj, where, "geometries"), join_path(where, "geometries"))
+        items = f.list(_key(f, obj, where, "geometries"), join_path(where, "geometries"))
         for index, item in enumerate(items):
             at = join_path(join_path(where, "geometries"), index)
             geometries.append(self.geometry(f, f.object(item, at), at))
         return Volume(name, prefix, origin, permits, self._distinct(f, name, prefix, geometries), f.source, where)
 
-    def _distinct(self, f: _Fields, volume: str, prefix: str, geometries: list[Geometry]) -> tuple[Geometry, ...]:
+    def _distinct(self, f: Fields, volume: str, prefix: str, geometries: list[Geometry]) -> tuple[Geometry, ...]:
         """Geometries that repeat a name or a prefix of their volume, made distinct (the original let them clash)."""
         out = list(geometries)
         for index, geometry in enumerate(out):
@@ -277,7 +270,7 @@ class _Loader:
                 out[index] = replace(geometry, name=new, frame_prefix=new if same_prefix else geometry.frame_prefix)
                 frames = f"frames {prefix}_{new} and {prefix}_{new}_pos_..." if same_prefix else f"frame {prefix}_{new}"
                 self.warn(f, join_path(geometry.source_path, "name"), f"volume {volume!r} defines a geometry "
-                          f"{geometry.name!r} again at {f.migration.original_path(later.source_path)}; the original's "
+                          f"{geometry.name!r} again at {f.original_path(later.source_path)}; the original's "
                           f"look-ups by name found that later one, and so do MAGNA's; this one is kept as {new!r} "
                           f"({frames})")
         for index, geometry in enumerate(out):
@@ -293,18 +286,16 @@ class _Loader:
 
     # --- geometries ---------------------------------------------------------------------------------------------
 
-    def geometry(self, f: _Fields, obj: dict, where: str) -> Geometry:
-        name = f.text(f.key(obj, where, "name"), join_path(where, "name"))
-        prefix = f.text(f.key(obj, where, "prefix"), join_path(where, "prefix"))
-        shape = f.key(obj, where, "shape")
+    def geometry(self, f: Fields, obj: dict, where: str) -> Geometry:
+        name = f.text(_key(f, obj, where, "name"), join_path(where, "name"))
+        prefix = f.text(_key(f, obj, where, "prefix"), join_path(where, "prefix"))
+        shape = _key(f, obj, where, "shape")
         try:
-            spec = parse_shape(shape, f.key(obj, where, "dimensions"))
+            spec = parse_shape(shape, _key(f, obj, where, "dimensions"))
         except ShapeError as err:
             raise _shape_error(f.source, where, err) from None
-        gid = obj.get("id", 0)
-        if isinstance(gid, bool) or not isinstance(gid, int):
-            raise WorldError(f.source, join_path(where, "id"), f"expected an integer, got {gid!r}")
-        origin = f.origin(f.key(obj, where, "origin"), join_path(where, "origin"))
+        gid = f.integer(obj.get("id", 0), join_path(where, "id"), "an integer")
+        origin = _origin(f, _key(f, obj, where, "origin"), join_path(where, "origin"))
         color = f.numbers(obj.get("color", [128, 128, 128]), join_path(where, "color"), 3, "[r, g, b], each 0-255")
         if any(c < 0 or c > 255 for c in color):
             raise WorldError(f.source, join_path(where, "color"), f"each component must be 0-255, got {list(color)}")
@@ -314,12 +305,12 @@ class _Loader:
         self._unknown(f, obj, where, {"name", "prefix", "shape", "id", "origin", "dimensions", "color", "alpha",
                                       "poses_sets"})
         sets_path = join_path(where, "poses_sets")
-        sets = []
+        sets: list[PoseSetSpec] = []
         for i, item in enumerate(f.list(obj.get("poses_sets", []), sets_path)):
             at = join_path(sets_path, i)
             item = f.object(item, at)
             if item.get("type") in IGNORED_SET_TYPES:
-                if f.migration.original_path(sets_path) != sets_path:  # written as divisions: the oldest format
+                if f.original_path(sets_path) != sets_path:  # written as divisions: the oldest format
                     what = ("in this format (divisions) the original laid a zigzag through a grid of `dimensions` "
                             "cells of the geometry, flown as its path; MAGNA has no such set and skips it, so a "
                             "mission asking for this geometry's path is refused")
@@ -330,18 +321,18 @@ class _Loader:
                           "over a prism")
                 continue
             sets.append(self.pose_set(f, item, at, spec.shape))
-        sets = tuple(sets)
-        return Geometry(name, prefix, spec, gid, origin, tuple(c / 255.0 for c in color), alpha, sets, where)
+        red, green, blue = (c / 255.0 for c in color)
+        return Geometry(name, prefix, spec, gid, origin, (red, green, blue), alpha, tuple(sets), where)
 
     # --- pose sets ------------------------------------------------------------------------------------------------
 
-    def pose_set(self, f: _Fields, obj: dict, where: str, shape: str) -> PoseSetSpec:
-        kind = f.choice(f.key(obj, where, "type"), join_path(where, "type"), POSE_SET_TYPES)
-        use = f.choice(obj.get("use", "poses"), join_path(where, "use"), USES)
-        common: dict[str, Any] = {"type": kind, "use": use, "source_path": f.migration.original_path(where)}
+    def pose_set(self, f: Fields, obj: dict[str, Any], where: str, shape: Shape) -> PoseSetSpec:
+        kind = f.choice(_key(f, obj, where, "type"), join_path(where, "type"), POSE_SET_TYPES, noun="value")
+        use = f.choice(obj.get("use", "poses"), join_path(where, "use"), USES, noun="value")
+        common: dict[str, Any] = {"type": kind, "use": use, "source_path": f.original_path(where)}
         known = {"type", "use", "poses_orientation", "set_orientation", "obstacles_shape", "obstacles_dimensions"}
         if "poses_orientation" in obj:
-            common["orientation"] = f.orientation(obj["poses_orientation"], join_path(where, "poses_orientation"))
+            common["orientation"] = _orientation(f, obj["poses_orientation"], join_path(where, "poses_orientation"))
         if "set_orientation" in obj:
             common["set_yaw"] = f.numbers(obj["set_orientation"], join_path(where, "set_orientation"), 3,
                                           "[roll, pitch, yaw] in radians")[2]
@@ -349,16 +340,17 @@ class _Loader:
             common["obstacle"] = self.obstacle(f, obj, where)
         if kind == "matrix":
             known |= {"matrix_type", "dimensions", "density"}
-            matrix_type = f.choice(obj.get("matrix_type", "dimension"), join_path(where, "matrix_type"), MATRIX_TYPES)
+            matrix_type = f.choice(obj.get("matrix_type", "dimension"), join_path(where, "matrix_type"), MATRIX_TYPES,
+                                   noun="value")
             dims_path = join_path(where, "dimensions")
             if matrix_type == "dimension":
-                dims = f.numbers(f.key(obj, where, "dimensions"), dims_path, 3, "[count_x, count_y, count_z]")
+                dims = f.numbers(_key(f, obj, where, "dimensions"), dims_path, 3, "[count_x, count_y, count_z]")
                 for axis, n in enumerate(dims):
                     if n != int(n) or n < 1:
                         raise WorldError(f.source, join_path(dims_path, axis), "a dimension matrix counts poses per "
                                          f"axis: a whole number >= 1, got {n}")
             else:
-                dims = f.numbers(f.key(obj, where, "dimensions"), dims_path, 3,
+                dims = f.numbers(_key(f, obj, where, "dimensions"), dims_path, 3,
                                  "[spacing_x, spacing_y, spacing_z] in m")
                 for axis, s in enumerate(dims):
                     if s <= 0:
@@ -370,20 +362,17 @@ class _Loader:
             common.update(matrix_type=matrix_type, matrix_dimensions=tuple(dims), density=density)
         elif kind == "random":
             known |= {"quantity"}
-            quantity = f.key(obj, where, "quantity")
-            if isinstance(quantity, bool) or not isinstance(quantity, int) or quantity < 1:
-                raise WorldError(f.source, join_path(where, "quantity"),
-                                 f"expected a whole number >= 1, got {quantity!r}")
-            common["quantity"] = quantity
+            common["quantity"] = f.integer(_key(f, obj, where, "quantity"), join_path(where, "quantity"),
+                                           "a whole number >= 1", minimum=1)
         elif kind == "coordinates":
             known |= {"coordinates"}
-            common["coordinates"] = f.poses(f.key(obj, where, "coordinates"), join_path(where, "coordinates"))
+            common["coordinates"] = _poses(f, _key(f, obj, where, "coordinates"), join_path(where, "coordinates"))
         else:
             known |= {"height", "spacing", "sweep_angle", "margins", "initial_sense", "orientation"}
             if shape not in SHAPES_FOR_ZIGZAG:
                 raise WorldError(f.source, join_path(where, "type"), f"a zigzag sweeps a prism's polygon; this "
                                  f"geometry is a {shape}. Make the geometry a prism or use another pose-set type")
-            spacing = f.numbers(f.key(obj, where, "spacing"), join_path(where, "spacing"), 2,
+            spacing = f.numbers(_key(f, obj, where, "spacing"), join_path(where, "spacing"), 2,
                                 "[along each line (0: its ends only), between lines] in m")
             if spacing[1] <= 0 or spacing[0] < 0:
                 raise WorldError(f.source, join_path(where, "spacing"), "the distance between lines must be positive "
@@ -393,25 +382,24 @@ class _Loader:
             if min(margins) < 0:
                 raise WorldError(f.source, join_path(where, "margins"), f"margins must be >= 0, got {list(margins)}")
             if "orientation" in obj and "poses_orientation" not in obj:
-                common["orientation"] = f.orientation(obj["orientation"], join_path(where, "orientation"))
-            common.update(height=f.number(f.key(obj, where, "height"), join_path(where, "height")),
+                common["orientation"] = _orientation(f, obj["orientation"], join_path(where, "orientation"))
+            common.update(height=f.number(_key(f, obj, where, "height"), join_path(where, "height")),
                           spacing=tuple(spacing),
                           sweep_angle=f.number(obj.get("sweep_angle", 0.0), join_path(where, "sweep_angle")),
                           margins=tuple(margins),
                           initial_sense=f.choice(obj.get("initial_sense", "right"), join_path(where, "initial_sense"),
-                                                 SENSES))
+                                                 SENSES, noun="value"))
         self._unknown(f, obj, where, known)
         return PoseSetSpec(**common)
 
-    def obstacle(self, f: _Fields, obj: dict, where: str) -> ObstacleSpec:
+    def obstacle(self, f: Fields, obj: dict, where: str) -> ObstacleSpec:
         shapes_path, dims_path = join_path(where, "obstacles_shape"), join_path(where, "obstacles_dimensions")
-        raw_shapes = f.key(obj, where, "obstacles_shape")
-        shapes = [raw_shapes] if isinstance(raw_shapes, str) else f.list(raw_shapes, shapes_path)
-        if not shapes:
+        raw_shapes = _key(f, obj, where, "obstacles_shape")
+        listed = [raw_shapes] if isinstance(raw_shapes, str) else f.list(raw_shapes, shapes_path)
+        if not listed:
             raise WorldError(f.source, shapes_path, f"give at least one of {', '.join(SHAPES)}")
-        for i, s in enumerate(shapes):
-            f.choice(s, join_path(shapes_path, i), SHAPES)
-        dims = f.list(f.key(obj, where, "obstacles_dimensions"), dims_path)
+        shapes = [f.choice(s, join_path(shapes_path, i), SHAPES, noun="value") for i, s in enumerate(listed)]
+        dims = f.list(_key(f, obj, where, "obstacles_dimensions"), dims_path)
         if "prism" in shapes:
             if shapes != ["prism"] * len(shapes):
                 raise WorldError(f.source, shapes_path, "a prism obstacle needs its own vertices; do not mix it with "
@@ -439,7 +427,7 @@ class _Loader:
                 raise WorldError(f.source, dims_path, f"for the torus obstacles: {err}") from None
         return ObstacleSpec(tuple(shapes), tuple(ranges))
 
-    def _unknown(self, f: _Fields, obj: dict, where: str, known: set[str]) -> None:
+    def _unknown(self, f: Fields, obj: dict, where: str, known: set[str]) -> None:
         for key in obj:
             if key not in known:
                 self.warn(f, join_path(where, key), "unknown field, ignored")
@@ -453,111 +441,71 @@ def _shape_error(source: str, where: str, err: ShapeError, rename: dict[str, str
     return WorldError(source, f"{where}.{head}{bracket}{rest}", message)
 
 
-class _Fields:
-    """Typed reads of one file's JSON, each naming its JSON path (as the file writes it) on failure."""
+def _key(f: Fields, obj: Any, where: str, key: str) -> Any:
+    """A required key; the message asks for it in the format's words (FIELD_HELP)."""
+    what = FIELD_HELP.get(key)
+    return f.key(obj, where, key, f"add it: {what}" if what else "add it")
 
-    def __init__(self, source: str, migration: Migration | None = None):
-        self.source = source
-        self.migration = migration or Migration(None)
 
-    def fail(self, where: str, message: str) -> WorldError:
-        return WorldError(self.source, self.migration.original_path(where), message)
+def _origin(f: Fields, value: Any, where: str) -> Frame:
+    items = f.list(value, where)
+    if len(items) != 2:
+        f.fail(where, f"expected [[x, y, z], [roll, pitch, yaw]], got {len(items)} item(s)")
+    xyz = f.numbers(items[0], join_path(where, 0), 3, "[x, y, z] in m")
+    rpy = f.numbers(items[1], join_path(where, 1), 3, "[roll, pitch, yaw] in radians")
+    return Frame.from_xyz_rpy(xyz, rpy)
 
-    def key(self, obj: dict, where: str, key: str) -> Any:
-        if not isinstance(obj, dict):
-            raise self.fail(where, f"expected an object, got {type(obj).__name__}")
-        if key not in obj:
-            what = FIELD_HELP.get(key)
-            raise self.fail(join_path(where, key), f"missing; add it: {what}" if what else "missing; add it")
-        return obj[key]
 
-    def object(self, value: Any, where: str) -> dict:
-        if not isinstance(value, dict):
-            raise self.fail(where, f"expected an object {{...}}, got {type(value).__name__}")
-        return value
+def _boundaries(f: Fields, value: Any, where: str) -> np.ndarray:
+    items = f.list(value, where)
+    if len(items) != 3:
+        f.fail(where, f"expected [[xmin, xmax], [ymin, ymax], [zmin, zmax]], got {len(items)} item(s)")
+    rows = [f.numbers(item, join_path(where, i), 2, "[min, max]") for i, item in enumerate(items)]
+    for i, (low, high) in enumerate(rows):
+        if low >= high:
+            f.fail(join_path(where, i), f"min must be below max, got [{low}, {high}]")
+    return np.array(rows)
 
-    def list(self, value: Any, where: str) -> list:
-        if not isinstance(value, list):
-            raise self.fail(where, f"expected a list [...], got {type(value).__name__}")
-        return value
 
-    def text(self, value: Any, where: str, allow_empty: bool = False) -> str:
-        if not isinstance(value, str) or (not value and not allow_empty):
-            raise self.fail(where, f"expected a non-empty string, got {value!r}")
-        return value
+def _orientation(f: Fields, value: Any, where: str) -> OrientationSpec:
+    if value == "random":
+        return OrientationSpec(any_rotation=True)
+    if value == "random_yaw":
+        return OrientationSpec(((0.0, 0.0), (0.0, 0.0), (-math.pi, math.pi)))
+    items = f.list(value, where)
+    if len(items) != 3:
+        f.fail(where, "expected [roll, pitch, yaw], [[low, high] x3], \"random_yaw\" or \"random\", "
+               f"got {len(items)} value(s)")
+    ranges = []
+    for axis, item in enumerate(items):
+        if isinstance(item, list):
+            low, high = f.numbers(item, join_path(where, axis), 2, "[low, high] in radians")
+            if low > high:
+                f.fail(join_path(where, axis), f"low must not exceed high, got [{low}, {high}]")
+        else:
+            low = high = f.number(item, join_path(where, axis))
+        ranges.append((low, high))
+    return OrientationSpec(tuple(ranges))
 
-    def choice(self, value: Any, where: str, options) -> str:
-        if value not in options:
-            raise self.fail(where, f"unknown value {value!r}; use one of {', '.join(options)}")
-        return value
 
-    def number(self, value: Any, where: str) -> float:
-        if isinstance(value, bool) or not isinstance(value, Real) or not math.isfinite(value):
-            raise self.fail(where, f"expected a finite number, got {value!r}")
-        return float(value)
-
-    def numbers(self, value: Any, where: str, n: int, usage: str) -> tuple[float, ...]:
-        items = self.list(value, where)
-        if len(items) != n:
-            raise self.fail(where, f"expected {usage}, got {len(items)} value(s)")
-        return tuple(self.number(v, join_path(where, i)) for i, v in enumerate(items))
-
-    def origin(self, value: Any, where: str) -> Frame:
-        items = self.list(value, where)
-        if len(items) != 2:
-            raise self.fail(where, f"expected [[x, y, z], [roll, pitch, yaw]], got {len(items)} item(s)")
-        xyz = self.numbers(items[0], join_path(where, 0), 3, "[x, y, z] in m")
-        rpy = self.numbers(items[1], join_path(where, 1), 3, "[roll, pitch, yaw] in radians")
-        return Frame.from_xyz_rpy(xyz, rpy)
-
-    def boundaries(self, value: Any, where: str) -> np.ndarray:
-        items = self.list(value, where)
-        if len(items) != 3:
-            raise self.fail(where, f"expected [[xmin, xmax], [ymin, ymax], [zmin, zmax]], got {len(items)} item(s)")
-        rows = [self.numbers(item, join_path(where, i), 2, "[min, max]") for i, item in enumerate(items)]
-        for i, (low, high) in enumerate(rows):
-            if low >= high:
-                raise self.fail(join_path(where, i), f"min must be below max, got [{low}, {high}]")
-        return np.array(rows)
-
-    def orientation(self, value: Any, where: str) -> OrientationSpec:
-        if value == "random":
-            return OrientationSpec(any_rotation=True)
-        if value == "random_yaw":
-            return OrientationSpec(((0.0, 0.0), (0.0, 0.0), (-math.pi, math.pi)))
-        items = self.list(value, where)
-        if len(items) != 3:
-            raise self.fail(where, "expected [roll, pitch, yaw], [[low, high] x3], \"random_yaw\" or \"random\", "
-                            f"got {len(items)} value(s)")
-        ranges = []
-        for axis, item in enumerate(items):
-            if isinstance(item, list):
-                low, high = self.numbers(item, join_path(where, axis), 2, "[low, high] in radians")
-                if low > high:
-                    raise self.fail(join_path(where, axis), f"low must not exceed high, got [{low}, {high}]")
-            else:
-                low = high = self.number(item, join_path(where, axis))
-            ranges.append((low, high))
-        return OrientationSpec(tuple(ranges))
-
-    def poses(self, value: Any, where: str) -> tuple:
-        """[[[x, y, z], [roll, pitch, yaw] or [qx, qy, qz, qw]], ...] -> ((xyz, quaternion), ...)."""
-        poses = []
-        for i, item in enumerate(self.list(value, where)):
-            at = join_path(where, i)
-            pair = self.list(item, at)
-            if len(pair) != 2:
-                raise self.fail(at, f"expected [[x, y, z], [roll, pitch, yaw]], got {len(pair)} item(s)")
-            xyz = self.numbers(pair[0], join_path(at, 0), 3, "[x, y, z] in m")
-            turn = self.list(pair[1], join_path(at, 1))
-            if len(turn) == 3:
-                quaternion = quaternions_from_rpy(self.numbers(turn, join_path(at, 1), 3, "[roll, pitch, yaw]"))[0]
-            else:
-                q = np.array(self.numbers(turn, join_path(at, 1), 4, "[roll, pitch, yaw] or [qx, qy, qz, qw]"))
-                if np.linalg.norm(q) < 1e-9:
-                    raise self.fail(join_path(at, 1), "a zero quaternion is no rotation; use [0, 0, 0, 1]")
-                quaternion = q / np.linalg.norm(q)
-            poses.append((xyz, tuple(float(v) for v in quaternion)))
-        if not poses:
-            raise self.fail(where, "give at least one pose [[x, y, z], [roll, pitch, yaw]]")
-        return tuple(poses)
+def _poses(f: Fields, value: Any, where: str) -> tuple[tuple[tuple[float, ...], tuple[float, ...]], ...]:
+    """[[[x, y, z], [roll, pitch, yaw] or [qx, qy, qz, qw]], ...] -> ((xyz, quaternion), ...)."""
+    poses = []
+    for i, item in enumerate(f.list(value, where)):
+        at = join_path(where, i)
+        pair = f.list(item, at)
+        if len(pair) != 2:
+            f.fail(at, f"expected [[x, y, z], [roll, pitch, yaw]], got {len(pair)} item(s)")
+        xyz = f.numbers(pair[0], join_path(at, 0), 3, "[x, y, z] in m")
+        turn = f.list(pair[1], join_path(at, 1))
+        if len(turn) == 3:
+            quaternion = quaternions_from_rpy(f.numbers(turn, join_path(at, 1), 3, "[roll, pitch, yaw]"))[0]
+        else:
+            q = np.array(f.numbers(turn, join_path(at, 1), 4, "[roll, pitch, yaw] or [qx, qy, qz, qw]"))
+            if np.linalg.norm(q) < 1e-9:
+                f.fail(join_path(at, 1), "a zero quaternion is no rotation; use [0, 0, 0, 1]")
+            quaternion = q / np.linalg.norm(q)
+        poses.append((xyz, tuple(float(v) for v in quaternion)))
+    if not poses:
+        f.fail(where, "give at least one pose [[x, y, z], [roll, pitch, yaw]]")
+    return tuple(poses)

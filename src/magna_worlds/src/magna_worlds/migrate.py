@@ -21,7 +21,7 @@ import copy
 from dataclasses import dataclass, field
 from typing import Any
 
-from magna_worlds.errors import join_path
+from magna_common.json_fields import join_path
 
 LEGACY_SETS_KEY, SETS_KEY = "divisions", "poses_sets"
 LEGACY_ORIENTATION_KEY, ORIENTATION_KEY = "orientation", "poses_orientation"
@@ -76,7 +76,7 @@ def migrate(data: Any) -> Migration:
     return result
 
 
-def _geometry(result: Migration, geometry: dict, where: str) -> None:
+def _geometry(result: Migration, geometry: dict[str, Any], where: str) -> None:
     if LEGACY_SETS_KEY in geometry and SETS_KEY not in geometry:
         geometry[SETS_KEY] = geometry.pop(LEGACY_SETS_KEY)
         result.changes.append(f"{join_path(where, LEGACY_SETS_KEY)} -> {SETS_KEY}")

@@ -13,12 +13,9 @@ import numpy as np
 
 from magna_worlds.shapes import ShapeSpec
 from magna_worlds.transforms import Frame
+from magna_worlds.vocabulary import MatrixType, PoseSetType, PoseUse, Sense, Shape
 
-POSE_SET_TYPES = ("matrix", "random", "coordinates", "zigzag")
-USES = ("poses", "obstacles")
-MATRIX_TYPES = ("dimension", "distance")
-SENSES = ("left", "right")
-SHAPES_FOR_ZIGZAG = ("prism",)
+SHAPES_FOR_ZIGZAG: tuple[Shape, ...] = ("prism",)
 
 
 @dataclass(frozen=True)
@@ -41,21 +38,21 @@ class OrientationSpec:
 class ObstacleSpec:
     """What each obstacle of a set looks like: a shape drawn from `shapes`, dimensions fixed or drawn per axis."""
 
-    shapes: tuple[str, ...]
+    shapes: tuple[Shape, ...]
     dimension_ranges: tuple[tuple[float, float], ...]  # [low, high] per dimension; prism: height only
     prism_polygon: tuple[tuple[float, float], ...] = ()
 
 
 @dataclass(frozen=True)
 class PoseSetSpec:
-    type: str  # matrix | random | coordinates | zigzag
-    use: str  # poses | obstacles
+    type: PoseSetType
+    use: PoseUse
     source_path: str  # JSON path of the set, for messages
     orientation: OrientationSpec = OrientationSpec()
     set_yaw: float = 0.0  # matrix over a prism: yaw of the grid (set_orientation[2])
     obstacle: ObstacleSpec | None = None
     # matrix
-    matrix_type: str = "dimension"
+    matrix_type: MatrixType = "dimension"
     matrix_dimensions: tuple[float, float, float] = (1, 1, 1)  # counts (dimension) or spacings in m (distance)
     density: float = 1.0
     # random
@@ -67,7 +64,7 @@ class PoseSetSpec:
     spacing: tuple[float, float] = (0.0, 0.0)  # along each line (0: its ends only), between lines
     sweep_angle: float = 0.0
     margins: tuple[float, float] = (0.0, 0.0)  # at each line's ends, from the first and last line to the edge
-    initial_sense: str = "right"
+    initial_sense: Sense = "right"
 
 
 @dataclass(frozen=True)

@@ -15,14 +15,15 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from numbers import Integral, Real
+from typing import Any
 
 import numpy as np
 
 from magna_worlds.generate import PlacedGeometry, ResolvedWorld, set_rng
 from magna_worlds.shapes import sample_uniform
 from magna_worlds.transforms import Frame, quaternions_from_rpy, rotate_quaternions
+from magna_worlds.vocabulary import POSE_KINDS
 
-KINDS = ("matrix", "random", "coordinates", "path", "poses")
 MAX_RANDOM = 100000
 
 
@@ -45,21 +46,21 @@ class PoseQueries:
         self.seed = seed
         self._draws = 0
 
-    def resolve(self, worlds: list[ResolvedWorld], definition) -> QueryResult:
+    def resolve(self, worlds: list[ResolvedWorld], definition: Any) -> QueryResult:
         items = list(definition) if isinstance(definition, (list, tuple)) else None
         if items is None or len(items) not in (4, 5):
             raise QueryError(f"definition: expected [volume, geometry, kind, arg], got {definition!r}")
         volume_name, geometry_name, kind, arg = items[0], items[1], items[2], _decode(items[3])
-        resolved = next((w for w in worlds if volume_name in w.volume_frames), None)
-        if resolved is None:
+        found = next(((w, v) for w in worlds for v in w.world.volumes if v.name == volume_name), None)
+        if found is None:
             known = sorted(v for w in worlds for v in w.volume_frames)
             raise QueryError(f"definition[0]: no volume named {volume_name!r}; volumes: {', '.join(known) or 'none'}")
-        if kind not in KINDS:
-            raise QueryError(f"definition[2]: unknown kind {kind!r}; use one of {', '.join(KINDS)}")
+        resolved, volume = found
+        if kind not in POSE_KINDS:
+            raise QueryError(f"definition[2]: unknown kind {kind!r}; use one of {', '.join(POSE_KINDS)}")
         if geometry_name == "volume":
             if kind != "coordinates":
                 raise QueryError(f"definition[2]: a volume itself only takes coordinates, got {kind!r}")
-            volume = resolved.world.volume(volume_name)
             return self._coordinates(resolved.volume_frames[volume_name], volume.name, f"{volume.prefix}_pos", arg)
         placed = resolved.geometry(volume_name, geometry_name)
         if placed is None:
@@ -76,22 +77,22 @@ class PoseQueries:
             return self._path(placed, arg)
         return self._poses(placed, arg)
 
-    def _matrix(self, placed: PlacedGeometry, arg) -> QueryResult:
-        matrices = [s for s in placed.poses() if s.cells is not None]
+    def _matrix(self, placed: PlacedGeometry, arg: Any) -> QueryResult:
+        matrices = [(s, s.cells) for s in placed.poses() if s.cells is not None]
         if not matrices:
             raise QueryError(f"definition[2]: {placed.frame_name} has no matrix set of poses")
         if not (isinstance(arg, list) and len(arg) == 3 and all(isinstance(v, Integral) for v in arg)):
             raise QueryError(f"definition[3]: a matrix cell is [i, j, k] (whole numbers), got {arg!r}")
-        pose_set = matrices[0]
-        row = pose_set.cells.get(tuple(arg))
+        pose_set, cells = matrices[0]
+        row = cells.get((arg[0], arg[1], arg[2]))
         if row is None:
-            top = np.max(np.array(list(pose_set.cells)), axis=0).tolist()
+            top = np.max(np.array(list(cells)), axis=0).tolist()
             raise QueryError(f"definition[3]: {placed.frame_name} has no cell {arg}; its cells run up to {top} "
                              "(from 0; density may leave some out)")
         return QueryResult(pose_set.positions[[row]], pose_set.quaternions[[row]], [pose_set.frames[row]])
 
-    def _random(self, placed: PlacedGeometry, arg) -> QueryResult:
-        if isinstance(arg, bool) or not isinstance(arg, Integral) or not 1 <= arg <= MAX_RANDOM:
+    def _random(self, placed: PlacedGeometry, arg: Any) -> QueryResult:
+        if isinstance(arg, bool) or not isinstance(arg, int) or not 1 <= arg <= MAX_RANDOM:
             raise QueryError(f"definition[3]: random takes how many poses to draw, 1..{MAX_RANDOM}, got {arg!r}")
         rng = set_rng(self.seed, placed.volume.name, placed.geometry.name, 1000 + self._draws)
         first = self._draws
@@ -103,7 +104,7 @@ class PoseQueries:
         map_quaternions = rotate_quaternions(placed.frame.rotation, quaternions)
         return QueryResult(placed.frame.apply(local), map_quaternions, names, new)
 
-    def _coordinates(self, frame: Frame, parent: str, stem: str, arg) -> QueryResult:
+    def _coordinates(self, frame: Frame, parent: str, stem: str, arg: Any) -> QueryResult:
         poses = arg if isinstance(arg, list) and arg and isinstance(arg[0], list) and arg[0] and \
             isinstance(arg[0][0], list) else [arg]
         positions, quaternions = [], []
@@ -127,31 +128,32 @@ class PoseQueries:
         new = [(parent, n, Frame.from_xyz_quaternion(p, q)) for n, p, q in zip(names, local_p, local_q, strict=True)]
         return QueryResult(frame.apply(local_p), rotate_quaternions(frame.rotation, local_q), names, new)
 
-    def _path(self, placed: PlacedGeometry, arg) -> QueryResult:
-        paths = [s for s in placed.poses() if s.path_name]
+    def _path(self, placed: PlacedGeometry, arg: Any) -> QueryResult:
+        paths = [(s, s.path_name) for s in placed.poses() if s.path_name]
         if not paths:
             raise QueryError(f"definition[2]: {placed.frame_name} has no zigzag path")
         if arg in (None, "", []):
-            chosen = paths[0]
-        elif isinstance(arg, Integral) and not isinstance(arg, bool) and 0 <= arg < len(paths):
-            chosen = paths[arg]
+            chosen = paths[0][0]
+        elif isinstance(arg, int) and not isinstance(arg, bool) and 0 <= arg < len(paths):
+            chosen = paths[arg][0]
         else:
-            chosen = next((s for s in paths if isinstance(arg, str) and s.path_name.lower() == arg.lower()), None)
-            if chosen is None:
+            named = next((s for s, name in paths if isinstance(arg, str) and name.lower() == arg.lower()), None)
+            if named is None:
                 raise QueryError(f"definition[3]: no path {arg!r} in {placed.frame_name}; it has "
-                                 f"{', '.join(s.path_name for s in paths)} (or their index from 0)")
+                                 f"{', '.join(name for _, name in paths)} (or their index from 0)")
+            chosen = named
         return QueryResult(chosen.positions, chosen.quaternions, list(chosen.frames))
 
-    def _poses(self, placed: PlacedGeometry, arg) -> QueryResult:
+    def _poses(self, placed: PlacedGeometry, arg: Any) -> QueryResult:
         sets = placed.poses()
-        if isinstance(arg, bool) or not isinstance(arg, Integral) or not 0 <= arg < len(sets):
+        if isinstance(arg, bool) or not isinstance(arg, int) or not 0 <= arg < len(sets):
             raise QueryError(f"definition[3]: {placed.frame_name} has {len(sets)} set(s) of poses; give an index "
                              f"0..{len(sets) - 1}, got {arg!r}")
         chosen = sets[arg]
         return QueryResult(chosen.positions, chosen.quaternions, list(chosen.frames))
 
 
-def _decode(item):
+def _decode(item: Any) -> Any:
     """ROS string[] requests carry each element as text: decode JSON where it parses, keep plain names."""
     if isinstance(item, str):
         try:

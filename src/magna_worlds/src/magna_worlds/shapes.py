@@ -37,8 +37,10 @@ from numbers import Real
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
-SHAPES = ("cube", "sphere", "cylinder", "torus", "prism")
+from magna_worlds.vocabulary import SHAPES, Shape
+
 TORUS_RING_SEGMENTS = 64  # around the z axis
 TORUS_TUBE_SEGMENTS = 32  # around the tube
 
@@ -60,7 +62,7 @@ class ShapeError(ValueError):
 class ShapeSpec:
     """A checked obstacle description (see the module docstring for the conventions)."""
 
-    shape: str
+    shape: Shape
     dimensions: tuple[float, ...]  # prism: (height,)
     polygon: tuple[tuple[float, float], ...] = ()  # prism only: base vertices, counter-clockwise
 
@@ -106,7 +108,7 @@ def torus_mesh(major_radius: float, minor_radius: float, ring_segments: int = TO
     i, j = np.meshgrid(np.arange(ring_segments), np.arange(tube_segments), indexing="ij")
     i1, j1 = (i + 1) % ring_segments, (j + 1) % tube_segments
 
-    def at(a, b):
+    def at(a: np.ndarray, b: np.ndarray) -> np.ndarray:
         return (a * tube_segments + b).ravel()
 
     # d/dphi x d/dtheta points outward, so (i,j) -> (i+1,j) -> (i+1,j+1) winds counter-clockwise outside.
@@ -115,7 +117,7 @@ def torus_mesh(major_radius: float, minor_radius: float, ring_segments: int = TO
     return vertices, triangles
 
 
-def prism_mesh(polygon, height: float) -> tuple[np.ndarray, np.ndarray]:
+def prism_mesh(polygon: npt.ArrayLike, height: float) -> tuple[np.ndarray, np.ndarray]:
     """Closed extrusion of a simple counter-clockwise polygon from z = 0 to z = height."""
     base = np.asarray(polygon, dtype=float)
     n = len(base)
@@ -159,7 +161,7 @@ def solid_volume(spec: ShapeSpec) -> float:
     return abs(signed_area(np.array(spec.polygon))) * d[0]
 
 
-def contains(spec: ShapeSpec, points, tolerance: float = 1e-9) -> np.ndarray:
+def contains(spec: ShapeSpec, points: npt.ArrayLike, tolerance: float = 1e-9) -> np.ndarray:
     """Which of `points` (N, 3) lie inside the closed solid, boundary included (up to `tolerance` m)."""
     pts = np.asarray(points, dtype=float).reshape(-1, 3)
     x, y, z = pts[:, 0], pts[:, 1], pts[:, 2]
@@ -240,7 +242,7 @@ def _in_polygon(poly: np.ndarray, x: np.ndarray, y: np.ndarray, tol: float) -> n
 
 # --- checks -----------------------------------------------------------------------------------------------------
 
-def _parse_prism(dims: list, vertices: Any) -> ShapeSpec:
+def _parse_prism(dims: list[Any], vertices: Any) -> ShapeSpec:
     usage = _USAGE["prism"]
     if len(dims) == 2:
         if vertices is not None:
@@ -282,7 +284,7 @@ def _parse_prism(dims: list, vertices: Any) -> ShapeSpec:
     return ShapeSpec("prism", (height,), tuple((float(x), float(y)) for x, y in poly))
 
 
-def _sequence(value: Any, where: str, usage: str) -> list:
+def _sequence(value: Any, where: str, usage: str) -> list[Any]:
     if isinstance(value, (str, bytes, dict)) or not hasattr(value, "__len__") or not hasattr(value, "__getitem__"):
         raise ShapeError(f"{where}: expected a list; {usage}, got {value!r}")
     return list(value)
@@ -310,7 +312,7 @@ def finite_vector(value: Any, n: int, where: str, usage: str) -> np.ndarray:
 
 # --- 2-D polygon helpers ----------------------------------------------------------------------------------------
 
-def _cross(o, a, b) -> float:
+def _cross(o: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
     return float((a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]))
 
 
@@ -324,13 +326,13 @@ def is_convex(poly: np.ndarray) -> bool:
     return all(_cross(poly[i], poly[(i + 1) % n], poly[(i + 2) % n]) >= 0.0 for i in range(n))
 
 
-def _segments_cross(a, b, c, d) -> bool:
+def _segments_cross(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray) -> bool:
     """Whether closed segments ab and cd share a point."""
     d1, d2, d3, d4 = _cross(c, d, a), _cross(c, d, b), _cross(a, b, c), _cross(a, b, d)
     if ((d1 > 0) != (d2 > 0) and d1 != 0 and d2 != 0) and ((d3 > 0) != (d4 > 0) and d3 != 0 and d4 != 0):
         return True
 
-    def on(p_, q, r):  # r collinear with pq and inside its box
+    def on(p_: np.ndarray, q: np.ndarray, r: np.ndarray) -> bool:  # r collinear with pq and inside its box
         return (min(p_[0], q[0]) <= r[0] <= max(p_[0], q[0]) and min(p_[1], q[1]) <= r[1] <= max(p_[1], q[1]))
 
     return ((d1 == 0 and on(c, d, a)) or (d2 == 0 and on(c, d, b)) or (d3 == 0 and on(a, b, c))
@@ -352,7 +354,7 @@ def _self_intersection(poly: np.ndarray) -> tuple[int, int] | None:
 def triangulate(poly: np.ndarray) -> np.ndarray:
     """Ear clipping of a simple counter-clockwise polygon; triangles (n-2, 3) of vertex indices."""
     remaining = list(range(len(poly)))
-    triangles = []
+    triangles: list[tuple[int, ...]] = []
     while len(remaining) > 3:
         for k in range(len(remaining)):
             a, b, c = remaining[k - 1], remaining[k], remaining[(k + 1) % len(remaining)]
@@ -372,5 +374,5 @@ def triangulate(poly: np.ndarray) -> np.ndarray:
     return np.array(triangles, dtype=int)
 
 
-def _inside_triangle(q, a, b, c) -> bool:
+def _inside_triangle(q: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> bool:
     return _cross(a, b, q) >= 0.0 and _cross(b, c, q) >= 0.0 and _cross(c, a, q) >= 0.0
