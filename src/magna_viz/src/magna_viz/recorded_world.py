@@ -1,7 +1,7 @@
 """The world a simulation flew in, as solids to draw: from its `world.json` record, or the bag's obstacle markers.
 
 `world.json` is the world node's record (magna_worlds.registry.WorldRegistry.record, kept by the
-node for every part the run had, deleted ones too): `{"seed", "parts": {id: world_record(part)}}`.
+node for every part the run had, deleted ones too), read as magna_common.records.WorldRecord.
 A record holds every geometry's shape and pose and every obstacle, but not the geometries' colours.
 So each part is re-resolved from its source file with its seed (magna_worlds.loader + resolve_world),
 looked up again by `<world>/<subworld>` in the worlds search path when the recorded path no longer
@@ -12,12 +12,12 @@ Without world.json, the obstacles are the bounding spheres of the bag's obstacle
 """
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from magna_common.records import RecordedGeometry, RecordedObstacle, RecordedWorldPart, WorldRecord
 from magna_common.search_path import find_world_file, world_folders
 from magna_worlds.draw import OBSTACLE_COLOR, obstacle_spec
 from magna_worlds.errors import WorldError
@@ -60,18 +60,14 @@ class RecordedWorld:
 
 
 def world_from_record(record_file: Path, search_path: list[Path] | None = None) -> RecordedWorld:
-    """The shapes of every part of a world.json record (module docstring); ValueError if it is not one."""
-    try:
-        data = json.loads(Path(record_file).read_text())
-    except (OSError, json.JSONDecodeError) as err:
-        raise ValueError(f"{record_file}: cannot read the world record: {err}") from None
-    if not isinstance(data, dict) or not isinstance(data.get("parts"), dict):
-        raise ValueError(f"{record_file}: not a world node record (expected {{\"seed\", \"parts\": {{...}}}})")
+    """The shapes of every part of a world.json record (module docstring); RecordError (a ValueError naming
+    the file) if it is not one."""
+    record = WorldRecord.read(record_file)
     search = world_folders() if search_path is None else list(search_path)
     world = RecordedWorld()
     sources = []
     boxes = []
-    for part_id, part in data["parts"].items():
+    for part_id, part in record.parts.items():
         resolved, why = _re_resolve(part, search)
         if resolved is not None:
             world.shapes += _resolved_shapes(resolved)
@@ -81,8 +77,8 @@ def world_from_record(record_file: Path, search_path: list[Path] | None = None) 
             sources.append(f"{part_id}: world.json record")
             world.notes.append(f"world part {part_id!r} drawn from the record, geometries without their colours: "
                                f"{why}")
-        if part.get("world_boundaries"):
-            boxes.append(np.asarray(part["world_boundaries"], dtype=float).reshape(3, 2))
+        if part.world_boundaries:
+            boxes.append(np.asarray(part.world_boundaries, dtype=float).reshape(3, 2))
     if boxes:
         stacked = np.stack(boxes)
         world.boundaries = np.column_stack([stacked[:, :, 0].min(axis=0), stacked[:, :, 1].max(axis=0)])
@@ -106,8 +102,8 @@ def world_from_markers(markers: list) -> RecordedWorld:
     return RecordedWorld(list(seen.values()), None, "obstacle markers of the bag (bounding spheres)")
 
 
-def _re_resolve(part: dict, search_path: list[Path]) -> tuple[ResolvedWorld | None, str]:
-    source = Path(str(part.get("source", "")))
+def _re_resolve(part: RecordedWorldPart, search_path: list[Path]) -> tuple[ResolvedWorld | None, str]:
+    source = Path(part.source)
     candidates = [source] if source.suffix == ".json" else []
     if source.suffix == ".json" and source.parent.name:
         found = find_world_file(source.parent.name, source.stem, search_path)
@@ -119,22 +115,21 @@ def _re_resolve(part: dict, search_path: list[Path]) -> tuple[ResolvedWorld | No
     why = ""
     for candidate in candidates:
         try:
-            resolved = resolve_world(load_world(candidate, search_path), int(part.get("seed", 0)))
+            resolved = resolve_world(load_world(candidate, search_path), part.seed)
         except WorldError as err:
             why = f"re-resolving {candidate} failed: {err}"
             continue
-        if _same_obstacles(resolved, part.get("obstacles", [])):
+        if _same_obstacles(resolved, part.obstacles):
             return resolved, ""
         why = f"{candidate} resolves to other obstacles than the record (edited since?)"
     return None, why
 
 
-def _same_obstacles(resolved: ResolvedWorld, recorded: list) -> bool:
+def _same_obstacles(resolved: ResolvedWorld, recorded: tuple[RecordedObstacle, ...]) -> bool:
     mine = resolved.obstacles()
-    if [o.name for o in mine] != [o.get("name") for o in recorded]:
+    if [o.name for o in mine] != [o.name for o in recorded]:
         return False
-    return all(np.allclose(o.position, r["position"], atol=MATCH_TOLERANCE) for o, r in zip(mine, recorded,
-                                                                                              strict=True))
+    return all(np.allclose(o.position, r.position, atol=MATCH_TOLERANCE) for o, r in zip(mine, recorded, strict=True))
 
 
 def _resolved_shapes(resolved: ResolvedWorld) -> list[WorldShape]:
@@ -146,21 +141,20 @@ def _resolved_shapes(resolved: ResolvedWorld) -> list[WorldShape]:
     return shapes
 
 
-def _record_spec(item: dict) -> ShapeSpec:
-    polygon = tuple(tuple(float(c) for c in v[:2]) for v in item.get("polygon") or ())
-    return ShapeSpec(str(item["shape"]), tuple(float(d) for d in item["dimensions"]), polygon)
+def _record_spec(item: RecordedGeometry | RecordedObstacle) -> ShapeSpec:
+    polygon = tuple(tuple(v[:2]) for v in item.polygon)
+    return ShapeSpec(item.shape, tuple(item.dimensions), polygon)
 
 
-def _record_shapes(part: dict) -> list[WorldShape]:
+def _record_shapes(part: RecordedWorldPart) -> list[WorldShape]:
     shapes = []
-    for g in part.get("geometries", []):
-        frame = Frame.from_xyz_quaternion(g["position"], g["orientation"])
-        shapes.append(WorldShape(f"{g.get('volume', '?')}/{g.get('geometry', '?')}", "geometry", _record_spec(g),
-                                 frame, RECORD_COLOR, RECORD_ALPHA))
-    for o in part.get("obstacles", []):
-        frame = Frame.from_xyz_quaternion(o["position"], o["orientation"])
-        shapes.append(WorldShape(str(o.get("name", "obstacle")), "obstacle", _record_spec(o), frame,
-                                 OBSTACLE_COLOR, 1.0))
+    for g in part.geometries:
+        frame = Frame.from_xyz_quaternion(g.position, g.orientation)
+        shapes.append(WorldShape(f"{g.volume or '?'}/{g.geometry or '?'}", "geometry", _record_spec(g), frame,
+                                 RECORD_COLOR, RECORD_ALPHA))
+    for o in part.obstacles:
+        frame = Frame.from_xyz_quaternion(o.position, o.orientation)
+        shapes.append(WorldShape(o.name or "obstacle", "obstacle", _record_spec(o), frame, OBSTACLE_COLOR, 1.0))
     return shapes
 
 

@@ -18,10 +18,13 @@ import re
 import sys
 from pathlib import Path
 
+from magna_common.records import WorldRecord
+from magna_common.storage_tree import BAG_FILE
 from magna_viz import rviz_config as rc
 
 
-def fitted_config(world: str, record: dict | None, flights, override: Path | None, name: str) -> tuple[Path, str]:
+def fitted_config(world: str, record: WorldRecord | None, flights, override: Path | None,
+                  name: str) -> tuple[Path, str]:
     """(the rviz file to open, a note for the log): the family's configuration, fitted to the world
     record (a recorded world.json or a resolved world file) and the flights when known."""
     from magna_viz.replay.plan import view_box
@@ -46,15 +49,15 @@ def _sim_dir_inputs(sim_dir: Path):
     from magna_viz.replay.plan import read_bag, read_world
 
     flights = None
-    if (sim_dir / "simulation.bag").is_file():
+    if (sim_dir / BAG_FILE).is_file():
         try:
-            flights = read_bag(sim_dir / "simulation.bag").flight_box
+            flights = read_bag(sim_dir / BAG_FILE).flight_box
         except ReplayError as err:
             print(f"rviz_world: {err}", file=sys.stderr)
     return rc.world_of_sim_dir(sim_dir), read_world(sim_dir), flights
 
 
-def _world_record(world: str, subworld: str, worlds_path: list[Path], seed: int) -> dict | None:
+def _world_record(world: str, subworld: str, worlds_path: list[Path], seed: int) -> WorldRecord | None:
     try:
         from magna_common.search_path import find_world_file, world_folders
         from magna_worlds.generate import resolve_world, world_record
@@ -63,7 +66,8 @@ def _world_record(world: str, subworld: str, worlds_path: list[Path], seed: int)
         found = find_world_file(world, subworld, [*worlds_path, *world_folders()])
         if found is None:
             return None
-        return {"parts": {"main": world_record(resolve_world(load_world(found), seed))}}
+        return WorldRecord.from_dict({"parts": {"main": world_record(resolve_world(load_world(found), seed))}},
+                                     str(found))
     except Exception as error:  # a view is a convenience: a world that does not resolve keeps the default one
         print(f"rviz_world: cannot fit the view to {world}/{subworld}: {error}", file=sys.stderr)
         return None
