@@ -221,12 +221,12 @@ class WorldNode:
         return f"{len(done)} obstacle(s) spawned in the simulator" + (f", {len(failures)} failed" if failures else "")
 
     def _delete_obstacles(self, part_id: str) -> int:
-        names = self.spawned.pop(part_id, [])
-        if not names:
+        models = self.spawned.pop(part_id, [])
+        if not models:
             return 0
         delete = rospy.ServiceProxy(names.SIM_DELETE_MODEL, DeleteModel)
         removed = 0
-        for name in names:
+        for name in models:
             try:
                 removed += bool(delete(name).success)
             except rospy.ServiceException as err:
