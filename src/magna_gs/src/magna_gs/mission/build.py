@@ -11,7 +11,8 @@ this module only turns the plan into magna_sm objects.
 """
 from __future__ import annotations
 
-from typing import Protocol
+from collections.abc import Iterable
+from typing import Any, Protocol, cast
 
 from magna_gs.mission.model import (
     ACTION_OUTCOMES,
@@ -42,18 +43,18 @@ class StateFactory(Protocol):
 class InertState(State):
     """A leaf that only has outcomes: for drawing and structure checks; running it is an error."""
 
-    def __init__(self, outcomes, description: str):
+    def __init__(self, outcomes: Iterable[str], description: str):
         super().__init__(outcomes)
         self.description = description
 
-    def execute(self, ud) -> str:
+    def execute(self, ud: Any) -> str:
         raise RuntimeError(f"{self.description}: an inert state (built for drawing) cannot run")
 
 
-_INERT_TYPES: dict[str, type] = {}
+_INERT_TYPES: dict[str, type[InertState]] = {}
 
 
-def _inert(state_type: str, outcomes, description: str) -> InertState:
+def _inert(state_type: str, outcomes: Iterable[str], description: str) -> InertState:
     """An InertState whose class is named after its state type, so drawings read `1_take_off / take_off`."""
     cls = _INERT_TYPES.setdefault(state_type, type(state_type, (InertState,), {"__module__": __name__}))
     return cls(outcomes, description)
@@ -62,10 +63,11 @@ def _inert(state_type: str, outcomes, description: str) -> InertState:
 class InertFactory:
     """A StateFactory whose states never run (their class names are the state types, for drawings)."""
 
-    def action_state(self, uav_id, action, parameters, json_path) -> State:
+    def action_state(self, uav_id: int, action: str, parameters: ActionParameters, json_path: str) -> State:
         return _inert(action, ACTION_OUTCOMES, f"{json_path}: {action} for UAV {uav_id}")
 
-    def callback_state(self, state_type, ids, parameters, json_path) -> State:
+    def callback_state(self, state_type: str, ids: list[int], parameters: CallbackParameters,
+                       json_path: str) -> State:
         return _inert(state_type, CALLBACK_OUTCOMES, f"{json_path}: {state_type}")
 
 
@@ -91,7 +93,7 @@ class AbsentUavState(State):
         super().__init__(ACTION_OUTCOMES)
         self.description = description
 
-    def execute(self, ud) -> str:
+    def execute(self, ud: Any) -> str:
         return ABSENT_UAV_OUTCOME
 
 
@@ -100,13 +102,18 @@ def _make(state: PlannedState, mission: Mission, factory: StateFactory) -> State
         return AbsentUavState(f"{mission.where(state.json_path)}: {state.state_type} for UAV {state.uav}, which "
                               f"{mission.agents_key} does not configure")
     if state.kind == "SimpleActionState":
-        made = factory.action_state(state.uav, state.state_type, state.parameters, state.json_path)
+        assert state.uav is not None and state.state_type is not None, "the plan gives each its UAV and type"
+        parameters = cast(ActionParameters, state.parameters)  # read for its state type
+        made = factory.action_state(state.uav, state.state_type, parameters, state.json_path)
         return _checked(made, ACTION_OUTCOMES, "action_state", state, mission)
     if state.kind == "CBState":
-        made = factory.callback_state(state.state_type, list(state.ids), state.parameters, state.json_path)
+        assert state.state_type is not None, "the plan gives each leaf its type"
+        made = factory.callback_state(state.state_type, list(state.ids), cast(CallbackParameters, state.parameters),
+                                      state.json_path)
         return _checked(made, CALLBACK_OUTCOMES, "callback_state", state, mission)
     if state.kind == "Concurrence":
-        node = state.node
+        node = state.file_node
+        assert state.default_outcome is not None, "the plan gives each Concurrence its default outcome"
         outcome_cb = OUTCOME_CALLBACKS[node.outcome_cb].function if node.outcome_cb else None
         termination_cb = (CHILD_TERMINATION_CALLBACKS[node.child_termination_cb].function
                           if node.child_termination_cb else None)
@@ -116,6 +123,7 @@ def _make(state: PlannedState, mission: Mission, factory: StateFactory) -> State
             concurrence.add_state(child.label, _make(child, mission, factory))
         return concurrence
     if state.kind == "Sequence":
+        assert state.connector_outcome is not None, "a Sequence without one is a problem of the mission's"
         sequence = Sequence(state.outcomes, connector_outcome=state.connector_outcome)
         _fill_machine(sequence, state, mission, factory)
         return sequence
@@ -129,7 +137,7 @@ def _fill_machine(machine: StateMachine, state: PlannedState, mission: Mission, 
         machine.add_state(child.label, _make(child, mission, factory), dict(child.transitions))
 
 
-def _checked(made, outcomes: tuple[str, ...], method: str, state: PlannedState, mission: Mission) -> State:
+def _checked(made: Any, outcomes: tuple[str, ...], method: str, state: PlannedState, mission: Mission) -> State:
     if not isinstance(made, State):
         raise TypeError(f"{mission.where(state.json_path)}: factory.{method} returned {made!r}, not a magna_sm State")
     if set(made.get_registered_outcomes()) != set(outcomes):

@@ -28,6 +28,7 @@ renamed keys back).
 from __future__ import annotations
 
 import copy
+from collections.abc import Iterator
 from typing import Any
 
 from magna_worlds.migrate import Migration  # the same record of what a migration changed, for worlds and missions
@@ -106,7 +107,7 @@ def _agents_for_a_state_list(result: Migration) -> None:
         result.renamed[f"State_Machine[{index}]"] = f"[{index}]"
 
 
-def _uav_ids(node: dict):
+def _uav_ids(node: dict[str, Any]) -> Iterator[int]:
     """The UAV ids a node (and what it holds) names explicitly."""
     if node.get("ids_var") in ("uav", "agent"):
         ids = node.get("ids")
@@ -172,7 +173,7 @@ def _type_from_name(node: dict, path: str, result: Migration) -> None:
 
 def _three_item_definitions(parameters: dict, path: str, result: Migration) -> None:
     """[volume, geometry, "path" | "random"] (no fourth item) in paths and initial poses -> four items."""
-    places = []
+    places: list[tuple[Any, Any, str]] = []  # (the list or object holding a definition, its index or key, its path)
     if isinstance(parameters.get("path"), list):
         places += [(item, "definition", f"{path}.path[{i}].definition")
                    for i, item in enumerate(parameters["path"]) if isinstance(item, dict)]
@@ -189,7 +190,7 @@ def _three_item_definitions(parameters: dict, path: str, result: Migration) -> N
                                   f"({meaning}, what a definition of three items meant)")
 
 
-def _json(value) -> str:
+def _json(value: Any) -> str:
     return "null" if value is None else str(value)
 
 

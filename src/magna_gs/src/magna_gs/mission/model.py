@@ -7,50 +7,66 @@ can say where in the file it is (`State_Machine[7].occurrencies[0].parameters.pa
 """
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal, get_args
 
+from magna_common.errors import UserError
 from magna_uav.config import UavConfig
+from magna_worlds.vocabulary import PoseKind
 
-# --- vocabulary ---------------------------------------------------------------------------------------------------
+# --- vocabulary: each fixed value set a Literal type and the tuple of its values (plain strings at run time) ------
 
-NODE_TYPES = ("CBState", "SimpleActionState", "StateMachine", "Concurrence", "Sequence")
-CONTAINER_TYPES = ("StateMachine", "Concurrence", "Sequence")
-LEAF_TYPES = ("CBState", "SimpleActionState")
+LeafType = Literal["CBState", "SimpleActionState"]
+LEAF_TYPES: tuple[LeafType, ...] = get_args(LeafType)
+ContainerType = Literal["StateMachine", "Concurrence", "Sequence"]
+CONTAINER_TYPES: tuple[ContainerType, ...] = get_args(ContainerType)
+NodeType = Literal[LeafType, ContainerType]
+NODE_TYPES: tuple[NodeType, ...] = get_args(NodeType)
 
 # What a SimpleActionState (one goal to one UAV manager) can end with.
-ACTION_OUTCOMES = ("succeeded", "collision", "low_battery", "GS_critical_event", "utm_new_flightplan", "preempted",
-                   "aborted")
+ActionOutcome = Literal["succeeded", "collision", "low_battery", "GS_critical_event", "utm_new_flightplan",
+                        "preempted", "aborted"]
+ACTION_OUTCOMES: tuple[ActionOutcome, ...] = get_args(ActionOutcome)
 # What a CBState (work done by the ground station itself) can end with.
-CALLBACK_OUTCOMES = ("completed", "failed")
+CallbackOutcome = Literal["completed", "failed"]
+CALLBACK_OUTCOMES: tuple[CallbackOutcome, ...] = get_args(CallbackOutcome)
 
-ACTION_TYPES = ("take_off", "land", "follow_path", "basic_move", "follow_agent_ad", "follow_agent_ap", "save_csv",
-                "set_mission")
-CALLBACK_TYPES = ("world_config", "wait", "spawn_agents", "algorithm_control", "save_csv")
+# The state types of each leaf type (save_csv is both: a UAV's own, or the ground station's for several agents).
+ActionType = Literal["take_off", "land", "follow_path", "basic_move", "follow_agent_ad", "follow_agent_ap", "save_csv",
+                     "set_mission"]
+ACTION_TYPES: tuple[ActionType, ...] = get_args(ActionType)
+CallbackType = Literal["world_config", "wait", "spawn_agents", "algorithm_control", "save_csv"]
+CALLBACK_TYPES: tuple[CallbackType, ...] = get_args(CallbackType)
+StateType = Literal[ActionType, CallbackType]
 
 # How `ids` expands when it is "all" (or what each id means): one state per agent, or per waypoint of the path.
-IDS_VARS = ("agent", "wp")
+IdsVar = Literal["agent", "wp"]
+IDS_VARS: tuple[IdsVar, ...] = get_args(IdsVar)
 
 # The outcomes a top-level transition may end the mission with (the original's root machine had exactly these).
-MISSION_OUTCOMES = ("completed", "failed")
+MissionOutcome = Literal["completed", "failed"]
+MISSION_OUTCOMES: tuple[MissionOutcome, ...] = get_args(MissionOutcome)
 # The outcome of a Concurrence when neither its outcome_cb nor its occurrencies_outcome_map decides (as the original).
 CONCURRENCE_DEFAULT_OUTCOME = "completed"
 ALL_CHILDREN = "all"  # occurrencies_outcome_map key: every expanded child
 
-POSE_KINDS = ("matrix", "random", "coordinates", "path", "poses")
-MOVE_TYPES = ("takeoff", "land", "translation", "rotation")
-DYNAMICS = ("position", "velocity")
-DIRECTIONS = ("up", "down", "left", "right", "forward", "backward")
-WORLD_ACTIONS = ("spawn", "add", "delete")
-EXIT_TYPES = ("time", "button")
+MoveType = Literal["takeoff", "land", "translation", "rotation"]  # basic_move
+MOVE_TYPES: tuple[MoveType, ...] = get_args(MoveType)
+Dynamic = Literal["position", "velocity"]  # what a move commands
+DYNAMICS: tuple[Dynamic, ...] = get_args(Dynamic)
+Direction = Literal["up", "down", "left", "right", "forward", "backward"]  # basic_move
+DIRECTIONS: tuple[Direction, ...] = get_args(Direction)
+WorldAction = Literal["spawn", "add", "delete"]  # world_config
+WORLD_ACTIONS: tuple[WorldAction, ...] = get_args(WorldAction)
+ExitType = Literal["time", "button"]  # what ends a wait
+EXIT_TYPES: tuple[ExitType, ...] = get_args(ExitType)
 FROM_HYPERPARAMETERS = "from_hyperparameters"
 FROM_UTM = ("from utm", "from_utm")  # a follow_path whose path the UTM provides at run time
 
 
-class MissionError(ValueError):
+class MissionError(UserError, ValueError):
     """Bad mission input. `problems` lists every finding, each `file: JSON.path: what is wrong; how to fix it`."""
-
-    exit_status = 2
 
     def __init__(self, problems: list[str] | str):
         self.problems = [problems] if isinstance(problems, str) else list(problems)
@@ -65,17 +81,17 @@ class PoseDefinition:
 
     volume: str
     geometry: str
-    kind: str  # one of POSE_KINDS
+    kind: PoseKind
     arg: Any  # as written: [i, j, k] | N | pose(s) | path name or index | set index
     yaw: float | None = None  # spawn_agents only: the heading to spawn with (radians)
     json_path: str = ""
 
-    def as_list(self) -> list:
+    def as_list(self) -> list[Any]:
         """The definition as the world node's query takes it."""
         items = [self.volume, self.geometry, self.kind, self.arg]
         return items if self.yaw is None else [*items, self.yaw]
 
-    def __iter__(self):
+    def __iter__(self) -> Iterator[Any]:
         """A definition reads as the list the files write: `volume, geometry, kind, arg = definition`."""
         return iter(self.as_list())
 
@@ -99,16 +115,16 @@ class LandParams:
 class FollowPathParams:
     path: tuple[PoseDefinition, ...]  # empty when from_utm
     smooth_path_mode: int = 0  # 0: straight segments; n > 0: spline of order n
-    dynamic: str = "velocity"  # position | velocity
+    dynamic: Dynamic = "velocity"
     duration: float = 0.0  # s allowed; 0: no limit
     from_utm: bool = False  # the path comes from the UTM flight plan at run time
 
 
 @dataclass(frozen=True)
 class BasicMoveParams:
-    move_type: str  # takeoff | land | translation | rotation
-    dynamic: str  # position | velocity
-    direction: str  # up | down | left | right | forward | backward
+    move_type: MoveType
+    dynamic: Dynamic
+    direction: Direction
     value: float  # m (translation) or degrees (rotation)
     duration: float = 0.0  # s allowed; 0: no limit
 
@@ -152,14 +168,14 @@ class WorldPartDef:
 
 @dataclass(frozen=True)
 class WorldConfigParams:
-    action: str  # spawn | add | delete
+    action: WorldAction
     id: str | None = None  # the world (part) id: spawn and delete name one; add joins the last spawned by default
     world_part_def: WorldPartDef | None = None  # add (and spawn, when the world comes with it)
 
 
 @dataclass(frozen=True)
 class WaitParams:
-    exit_type: str  # time | button
+    exit_type: ExitType
     duration: float = 0.0  # s (time)
 
 
@@ -192,14 +208,14 @@ Ids = int | tuple[int, ...] | str  # an id, a list of ids, or "all"
 class Node:
     """One entry of State_Machine (or of a container's occurrencies), as written, typed."""
 
-    kind: str  # one of NODE_TYPES
+    kind: NodeType
     name: str
     json_path: str  # e.g. "State_Machine[7].occurrencies[0]"
-    state_type: str | None = None  # leaves: one of ACTION_TYPES / CALLBACK_TYPES
+    state_type: StateType | None = None  # leaves: one of ACTION_TYPES / CALLBACK_TYPES
     parameters: Parameters | None = None  # leaves: typed by state_type
     outcomes: dict[str, str] = field(default_factory=dict)  # transitions {outcome: state label | container outcome}
     ids: Ids | None = None
-    ids_var: str | None = None  # agent | wp
+    ids_var: IdsVar | None = None
     occurrencies: tuple[Node, ...] = ()  # containers: the children (spelled so in the files)
     occurrencies_outcome_map: dict[str, dict[str, str]] = field(default_factory=dict)  # Concurrence
     outcome_cb: str | None = None  # Concurrence: a name in outcome_callbacks.OUTCOME_CALLBACKS
@@ -214,7 +230,7 @@ class Node:
     def is_action(self) -> bool:
         return self.kind == "SimpleActionState"
 
-    def walk(self):
+    def walk(self) -> Iterator[Node]:
         """This node and every node below it, depth first, in file order."""
         yield self
         for child in self.occurrencies:
@@ -232,7 +248,7 @@ class Mission:
     def agent_ids(self) -> list[int]:
         return [agent.id for agent in self.agents]
 
-    def nodes(self):
+    def nodes(self) -> Iterator[Node]:
         """Every node of the mission, depth first, in file order."""
         for node in self.root:
             yield from node.walk()

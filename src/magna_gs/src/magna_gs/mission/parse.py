@@ -1,19 +1,28 @@
 """Migrated mission JSON -> `model.Mission`, checking every field once.
 
-Every problem is collected (not only the first) and reported together as one
-`MissionError`, each line `file: JSON.path: what is wrong; what to write instead`.
+Every problem is collected (not only the first: magna_common.json_fields, collecting) and
+reported together as one `MissionError`, each line `file: JSON.path: what is wrong; what to
+write instead`.
 Paths are the file's own (keys renamed by the migration are mapped back). Keys a
 state does not use are warnings: the original ignored them, and real missions carry some.
 """
 from __future__ import annotations
 
-import difflib
-import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from numbers import Integral, Real
 from pathlib import Path
 from typing import Any
 
+from magna_common.json_fields import (
+    MISSING,
+    JsonFields,
+    ObjectFields,
+    describe,
+    did_you_mean,
+    is_integer,
+    is_number,
+    join_path,
+)
 from magna_gs.mission.migrate import AGENTS_KEY, LEGACY_AGENTS_KEY, Migration
 from magna_gs.mission.model import (
     ACTION_TYPES,
@@ -27,13 +36,13 @@ from magna_gs.mission.model import (
     IDS_VARS,
     MOVE_TYPES,
     NODE_TYPES,
-    POSE_KINDS,
     WORLD_ACTIONS,
     AlgorithmControlParams,
     BasicMoveParams,
     FollowAgentADParams,
     FollowAgentAPParams,
     FollowPathParams,
+    Ids,
     LandParams,
     Mission,
     MissionError,
@@ -43,39 +52,29 @@ from magna_gs.mission.model import (
     SaveCsvParams,
     SetMissionParams,
     SpawnAgentsParams,
+    StateType,
     TakeOffParams,
     WaitParams,
     WorldConfigParams,
     WorldPartDef,
 )
+from magna_uav.config import UavConfig
+from magna_worlds.vocabulary import POSE_KINDS
 
 NODE_KEYS = ("type", "name", "state_type", "parameters", "outcomes", "ids", "ids_var", "occurrencies",
              "occurrencies_outcome_map", "outcome_cb", "child_termination_cb", "connector_outcome")
 UTM_KEY = "UTM"  # optional: the mission's own UTM flight plans (magna_gs.utm), or the name of a plan file
 TOP_KEYS = (AGENTS_KEY, "State_Machine", UTM_KEY)
-_MISSING = object()
 
 
-class _Reader:
-    """Collects problems and warnings with file and (original) JSON path."""
+class _Reader(JsonFields[None]):
+    """Collects every problem and warning with file and (original) JSON path, and how far the mission was read."""
 
     def __init__(self, source: str, migration: Migration):
-        self.source = source
+        super().__init__(source, None, migration.original_path)
         self.migration = migration
-        self.problems: list[str] = []
-        self.warnings: list[str] = []
         self.complete = True  # False once a node or the agents could not be read at all
         self.parameter_problems = 0  # how many of the problems are in parameters (the node is kept)
-
-    def where(self, path: str) -> str:
-        path = self.migration.original_path(path)
-        return f"{self.source}: {path}" if path else self.source
-
-    def fail(self, path: str, message: str) -> None:
-        self.problems.append(f"{self.where(path)}: {message}")
-
-    def warn(self, path: str, message: str) -> None:
-        self.warnings.append(f"{self.where(path)}: {message}")
 
 
 @dataclass
@@ -94,10 +93,10 @@ def parse_mission(migration: Migration, source: str, airframe_dir: Path | None =
     data = migration.data
     if not isinstance(data, dict):
         raise MissionError(f"{source}: the top level must be an object {{\"{AGENTS_KEY}\": [...], "
-                           f"\"State_Machine\": [...]}}, got {_kind(data)}")
+                           f"\"State_Machine\": [...]}}, got {describe(data)}")
     for key in data:
         if key not in TOP_KEYS and key != LEGACY_AGENTS_KEY:  # both agent keys: _agents says so
-            reader.fail(str(key), f"unknown key{_hint(key, (*TOP_KEYS, LEGACY_AGENTS_KEY))}; a mission has "
+            reader.fail(str(key), f"unknown key{did_you_mean(key, (*TOP_KEYS, LEGACY_AGENTS_KEY))}; a mission has "
                                   f"{AGENTS_KEY} and State_Machine (and optionally {UTM_KEY}, its flight plans)")
     if UTM_KEY in data:
         _utm(reader, data)
@@ -105,10 +104,9 @@ def parse_mission(migration: Migration, source: str, airframe_dir: Path | None =
     root: list[Node] = []
     if "State_Machine" not in data:
         reader.fail("State_Machine", "missing; list the mission's states here ([{\"type\": \"CBState\", ...}, ...])")
-    elif not isinstance(data["State_Machine"], list) or not data["State_Machine"]:
-        reader.fail("State_Machine", f"expected a non-empty list of states, got {_kind(data['State_Machine'])}")
     else:
-        for index, raw in enumerate(data["State_Machine"]):
+        states = reader.list(data["State_Machine"], "State_Machine", "a non-empty list of states", non_empty=True)
+        for index, raw in enumerate(states or []):
             node = _node(reader, raw, f"State_Machine[{index}]")
             if node is not None:
                 root.append(node)
@@ -117,7 +115,7 @@ def parse_mission(migration: Migration, source: str, airframe_dir: Path | None =
     return Parsed(Mission(source, agents, root, agents_key), reader.warnings, reader.problems, reader.complete)
 
 
-def _utm(reader: _Reader, data: dict) -> None:
+def _utm(reader: _Reader, data: dict[str, Any]) -> None:
     """The mission's UTM section is checked now, as the ground station would check it before flying."""
     from magna_gs.utm import UtmPlanError, mission_plan
 
@@ -127,7 +125,8 @@ def _utm(reader: _Reader, data: dict) -> None:
         reader.problems.append(" ".join(str(error).split()))
 
 
-def _agents(reader: _Reader, airframe_dir: Path | None):
+def _agents(reader: _Reader, airframe_dir: Path | None) -> tuple[list[UavConfig], str]:
+    """The agents (read by magna_uav.config, which stops at an entry's first problem) and the key the file used."""
     from magna_uav.config import ConfigError, configs_from_mission
 
     original = reader.migration.original
@@ -177,7 +176,7 @@ def _tolerated_agent_entries(reader: _Reader, raw: Any, key: str) -> Any:
     ids = [e.get("ID") if isinstance(e, dict) else None for e in entries]
     for index, entry in enumerate(entries):
         agent_id = ids[index]
-        if not _is_int(agent_id) or agent_id not in ids[:index]:
+        if not is_integer(agent_id) or agent_id not in ids[:index]:
             continue
         position = index + 1
         if position in ids:  # the position is another agent's ID: no faithful reading; the config check refuses it
@@ -192,25 +191,23 @@ def _tolerated_agent_entries(reader: _Reader, raw: Any, key: str) -> Any:
 # --- nodes ---------------------------------------------------------------------------------------------------------
 
 def _node(reader: _Reader, raw: Any, path: str) -> Node | None:
-    if not isinstance(raw, dict):
-        reader.fail(path, f"expected a state object {{\"type\": ..., \"name\": ...}}, got {_kind(raw)}")
+    if reader.object(raw, path, "a state object {\"type\": ..., \"name\": ...}") is None:
         return None
     problems_before, parameter_problems_before = len(reader.problems), reader.parameter_problems
     for key in raw:
         if key not in NODE_KEYS:
-            reader.fail(f"{path}.{key}", f"unknown key{_hint(key, NODE_KEYS)}; a state has {', '.join(NODE_KEYS)}")
-    kind = raw.get("type", _MISSING)
-    if kind is _MISSING:
+            reader.fail(f"{path}.{key}", f"unknown key{did_you_mean(key, NODE_KEYS)}; a state has "
+                                         f"{', '.join(NODE_KEYS)}")
+    if "type" not in raw:
         reader.fail(f"{path}.type", f"missing; give one of {', '.join(NODE_TYPES)}")
         reader.complete = False
         return None
-    if kind not in NODE_TYPES:
-        reader.fail(f"{path}.type", f"unknown type {kind!r}{_hint(kind, NODE_TYPES)}; use one of "
-                                    f"{', '.join(NODE_TYPES)}")
+    kind = reader.choice(raw["type"], f"{path}.type", NODE_TYPES, noun="type")
+    if kind is None:
         reader.complete = False
         return None
-    name = raw.get("name", _MISSING)
-    if name is _MISSING:
+    name = raw.get("name", MISSING)
+    if name is MISSING:
         reader.fail(f"{path}.name", "missing; every state has a name (containers and action states are registered "
                                     "as {id}_{name})")
     elif not isinstance(name, str) or not name.strip():
@@ -226,7 +223,7 @@ def _node(reader: _Reader, raw: Any, path: str) -> Node | None:
         state_type = _state_type(reader, raw, path, kind)
         if state_type is not None:
             before = len(reader.problems)
-            parameters = _parameters(reader, raw.get("parameters", _MISSING), f"{path}.parameters", state_type)
+            parameters = _parameters(reader, raw.get("parameters", {}), f"{path}.parameters", state_type)
             reader.parameter_problems += len(reader.problems) - before
 
     outcomes = _transitions(reader, raw.get("outcomes", {}), f"{path}.outcomes")
@@ -239,13 +236,12 @@ def _node(reader: _Reader, raw: Any, path: str) -> Node | None:
 
     children: tuple[Node, ...] = ()
     if container:
-        raw_children = raw.get("occurrencies", _MISSING)
-        if raw_children is _MISSING:
+        if "occurrencies" not in raw:
             reader.fail(f"{path}.occurrencies", f"missing; a {kind} lists its states under occurrencies (spelled so)")
-        elif not isinstance(raw_children, list) or not raw_children:
-            reader.fail(f"{path}.occurrencies", f"expected a non-empty list of states, got {_kind(raw_children)}")
         else:
-            parsed = [_node(reader, child, f"{path}.occurrencies[{i}]") for i, child in enumerate(raw_children)]
+            raw_children = reader.list(raw["occurrencies"], f"{path}.occurrencies", "a non-empty list of states",
+                                       non_empty=True)
+            parsed = [_node(reader, child, f"{path}.occurrencies[{i}]") for i, child in enumerate(raw_children or [])]
             children = tuple(child for child in parsed if child is not None)
     elif "occurrencies" in raw:
         reader.fail(f"{path}.occurrencies", f"a {kind} has no occurrencies; put the states in a StateMachine, "
@@ -257,24 +253,21 @@ def _node(reader: _Reader, raw: Any, path: str) -> Node | None:
             reader.fail(f"{path}.{key}", f"only a Concurrence has {key}; this is a {kind}")
     if kind == "Concurrence" and "occurrencies_outcome_map" in raw:
         outcome_map = _outcome_map(reader, raw["occurrencies_outcome_map"], f"{path}.occurrencies_outcome_map")
-    callbacks = {}
+    callbacks: dict[str, str | None] = {}
     for key in ("outcome_cb", "child_termination_cb"):
         value = raw.get(key)
-        if kind == "Concurrence" and value is not None and not isinstance(value, str):
-            reader.fail(f"{path}.{key}", f"expected a callback name (a string), got {value!r}")
-            value = None
-        callbacks[key] = value if kind == "Concurrence" else None
+        if kind == "Concurrence" and value is not None:
+            callbacks[key] = reader.text(value, f"{path}.{key}", "a callback name (a string)", allow_empty=True)
+        else:
+            callbacks[key] = None
 
     connector = None
     if kind == "Sequence":
-        connector = raw.get("connector_outcome", _MISSING)
-        if connector is _MISSING:
+        if "connector_outcome" not in raw:
             reader.fail(f"{path}.connector_outcome", "missing; a Sequence chains its states by one outcome "
                                                      "(e.g. \"succeeded\")")
-            connector = None
-        elif not isinstance(connector, str) or not connector:
-            reader.fail(f"{path}.connector_outcome", f"expected an outcome name, got {connector!r}")
-            connector = None
+        else:
+            connector = reader.text(raw["connector_outcome"], f"{path}.connector_outcome", "an outcome name")
     elif "connector_outcome" in raw:
         reader.fail(f"{path}.connector_outcome", f"only a Sequence has connector_outcome; this is a {kind}")
 
@@ -290,44 +283,41 @@ def _node(reader: _Reader, raw: Any, path: str) -> Node | None:
                 child_termination_cb=callbacks["child_termination_cb"], connector_outcome=connector)
 
 
-def _state_type(reader: _Reader, raw: dict, path: str, kind: str) -> str | None:
-    allowed = ACTION_TYPES if kind == "SimpleActionState" else CALLBACK_TYPES
+def _state_type(reader: _Reader, raw: dict[str, Any], path: str, kind: str) -> StateType | None:
+    allowed: tuple[StateType, ...] = ACTION_TYPES if kind == "SimpleActionState" else CALLBACK_TYPES
     other_kind, other = ("CBState", CALLBACK_TYPES) if kind == "SimpleActionState" else ("SimpleActionState",
                                                                                           ACTION_TYPES)
-    state_type = raw.get("state_type", _MISSING)
-    if state_type is _MISSING:
+    if "state_type" not in raw:
         reader.fail(f"{path}.state_type", f"missing; a {kind} has one of {', '.join(allowed)}")
         return None
+    state_type = raw["state_type"]
     if state_type in allowed:
-        return state_type
+        return allowed[allowed.index(state_type)]
     if state_type in other:
         reader.fail(f"{path}.state_type", f"{state_type!r} is a {other_kind} type; make this state a {other_kind} "
                                           f"or use one of {', '.join(allowed)}")
     else:
-        reader.fail(f"{path}.state_type", f"unknown state_type {state_type!r}{_hint(state_type, allowed)}; a {kind} "
-                                          f"has one of {', '.join(allowed)}")
+        reader.fail(f"{path}.state_type", f"unknown state_type {state_type!r}{did_you_mean(state_type, allowed)}; "
+                                          f"a {kind} has one of {', '.join(allowed)}")
     return None
 
 
 def _transitions(reader: _Reader, raw: Any, path: str) -> dict[str, str]:
-    if not isinstance(raw, dict):
-        reader.fail(path, f"expected an object {{outcome: next state or outcome}}, got {_kind(raw)}")
-        return {}
+    transitions = reader.object(raw, path, "an object {outcome: next state or outcome}")
     out = {}
-    for outcome, target in raw.items():
-        if not isinstance(target, str) or not target:
-            reader.fail(f"{path}.{outcome}", f"expected the label of a state or an outcome (a string), got {target!r}")
-        else:
-            out[outcome] = target
+    for outcome, target in (transitions or {}).items():
+        label = reader.text(target, f"{path}.{outcome}", "the label of a state or an outcome (a string)")
+        if label is not None:
+            out[outcome] = label
     return out
 
 
-def _ids(reader: _Reader, raw: Any, path: str):
+def _ids(reader: _Reader, raw: Any, path: str) -> Ids | None:
     if raw == "all":
         return "all"
-    if _is_int(raw) and raw >= 0:
+    if is_integer(raw) and raw >= 0:
         return int(raw)
-    if isinstance(raw, list) and raw and all(_is_int(i) and i >= 0 for i in raw):
+    if isinstance(raw, list) and raw and all(is_integer(i) and i >= 0 for i in raw):
         if len(set(raw)) != len(raw):
             reader.fail(path, f"{raw} names an id twice; give each once")
             return None
@@ -337,218 +327,100 @@ def _ids(reader: _Reader, raw: Any, path: str):
 
 
 def _outcome_map(reader: _Reader, raw: Any, path: str) -> dict[str, dict[str, str]]:
-    usage = "{container outcome: {child label or \"all\": child outcome}}"
-    if not isinstance(raw, dict):
-        reader.fail(path, f"expected {usage}, got {_kind(raw)}")
-        return {}
+    outcome_map = reader.object(raw, path, "{container outcome: {child label or \"all\": child outcome}}")
     out = {}
-    for outcome, conditions in raw.items():
+    for outcome, conditions in (outcome_map or {}).items():
         if not isinstance(conditions, dict) or not conditions:
             reader.fail(f"{path}.{outcome}", f"expected a non-empty object {{child label or \"all\": child outcome}}, "
                                              f"got {conditions!r}")
             continue
-        bad = [k for k, v in conditions.items() if not isinstance(v, str) or not v]
-        for key in bad:
-            reader.fail(f"{path}.{outcome}.{key}", f"expected a child outcome (a string), got {conditions[key]!r}")
-        if not bad:
+        read = [reader.text(wanted, f"{path}.{outcome}.{key}", "a child outcome (a string)")
+                for key, wanted in conditions.items()]
+        if None not in read:
             out[outcome] = dict(conditions)
     return out
 
 
 # --- parameters ----------------------------------------------------------------------------------------------------
 
-class _Fields:
-    """Typed reads of one parameters object; unknown keys become warnings when `done()` is called."""
-
-    def __init__(self, reader: _Reader, raw: dict, path: str, state_type: str):
-        self.reader, self.raw, self.path, self.state_type = reader, raw, path, state_type
-        self.used: set[str] = set()
-        self.ok = True
-
-    def _get(self, key: str, required: bool, usage: str):
-        self.used.add(key)
-        if key not in self.raw:
-            if required:
-                self.fail(key, f"missing; {self.state_type} needs {key} ({usage})")
-            return _MISSING
-        return self.raw[key]
-
-    def fail(self, key: str | None, message: str) -> None:
-        self.ok = False
-        self.reader.fail(f"{self.path}.{key}" if key else self.path, message)
-
-    def number(self, key: str, default=_MISSING, minimum: float | None = None, positive: bool = False,
-               usage: str = "a number"):
-        value = self._get(key, default is _MISSING, usage)
-        if value is _MISSING:
-            return None if default is _MISSING else default
-        if not _is_number(value):
-            self.fail(key, f"expected {usage}, got {value!r}")
-            return None
-        if positive and value <= 0 or minimum is not None and value < minimum:
-            self.fail(key, f"expected {usage}, got {value!r}")
-            return None
-        return float(value)
-
-    def integer(self, key: str, default=_MISSING, minimum: int = 0, usage: str = "a whole number"):
-        value = self._get(key, default is _MISSING, usage)
-        if value is _MISSING:
-            return None if default is _MISSING else default
-        if not _is_int(value) or value < minimum:
-            self.fail(key, f"expected {usage}, got {value!r}")
-            return None
-        return int(value)
-
-    def choice(self, key: str, options, default=_MISSING):
-        usage = "one of " + ", ".join(options)
-        value = self._get(key, default is _MISSING, usage)
-        if value is _MISSING:
-            return None if default is _MISSING else default
-        if value not in options:
-            self.fail(key, f"{value!r} is not {usage}{_hint(value, options)}")
-            return None
-        return value
-
-    def flag(self, key: str, default: bool) -> bool:
-        value = self._get(key, False, "true or false")
-        if value is _MISSING:
-            return default
-        if not isinstance(value, bool):
-            self.fail(key, f"expected true or false, got {value!r}")
-            return default
-        return value
-
-    def text(self, key: str, default=_MISSING, usage: str = "a string"):
-        value = self._get(key, default is _MISSING, usage)
-        if value is _MISSING:
-            return None if default is _MISSING else default
-        if not isinstance(value, str) or not value:
-            self.fail(key, f"expected {usage}, got {value!r}")
-            return None
-        return value
-
-    def definitions(self, key: str, usage: str) -> tuple[PoseDefinition, ...]:
-        value = self._get(key, True, usage)
-        if value is _MISSING:
-            return ()
-        if not isinstance(value, list) or not value:
-            self.fail(key, f"expected {usage}, got {_kind(value)}")
-            return ()
-        out = []
-        for index, item in enumerate(value):
-            definition = _definition(self.reader, item, f"{self.path}.{key}[{index}]", allow_yaw=True)
-            if definition is None:
-                self.ok = False
-            else:
-                out.append(definition)
-        return tuple(out)
-
-    def path_items(self, key: str) -> tuple[PoseDefinition, ...] | None:
-        """`[{"definition": [...]}, ...]`; None (no problem) for a path from the UTM."""
-        usage = "a non-empty list of {\"definition\": [volume, geometry, kind, arg]}"
-        value = self._get(key, True, usage)
-        if value is _MISSING:
-            return ()
-        if value in FROM_UTM:
-            return None
-        if not isinstance(value, list) or not value:
-            self.fail(key, f"expected {usage} (or \"from utm\"), got {_kind(value)}")
-            return ()
-        out = []
-        for index, item in enumerate(value):
-            where = f"{self.path}.{key}[{index}]"
-            if not isinstance(item, dict) or "definition" not in item:
-                self.ok = False
-                self.reader.fail(where, f"expected {{\"definition\": [volume, geometry, kind, arg]}}, got {item!r}")
-                continue
-            for extra in item:
-                if extra != "definition":
-                    self.reader.warn(f"{where}.{extra}", "unknown key, ignored; a path item has only 'definition'")
-            definition = _definition(self.reader, item["definition"], f"{where}.definition", allow_yaw=False)
-            if definition is None:
-                self.ok = False
-            else:
-                out.append(definition)
-        return tuple(out)
-
-    def done(self) -> bool:
-        for key in self.raw:
-            if key not in self.used:
-                self.reader.warn(f"{self.path}.{key}", f"{self.state_type} does not use {key}; ignored"
-                                 f"{_hint(key, sorted(self.used))}")
-        return self.ok
-
-
-def _parameters(reader: _Reader, raw: Any, path: str, state_type: str) -> Parameters | None:
-    if raw is _MISSING:
-        raw = {}
-    if not isinstance(raw, dict):
-        reader.fail(path, f"expected an object of {state_type} parameters, got {_kind(raw)}")
+def _parameters(reader: _Reader, raw: Any, path: str, state_type: StateType) -> Parameters | None:
+    """The state's parameters, typed; None when any is bad. Keys the state does not use are warnings."""
+    obj = reader.object(raw, path, f"an object of {state_type} parameters")
+    if obj is None:
         return None
-    f = _Fields(reader, raw, path, state_type)
+    f = ObjectFields(reader, obj, path, lambda key, usage: f"{state_type} needs {key} ({usage})")
     params = _PARSERS[state_type](f)
-    return params if f.done() and params is not None else None
+    for key in f.unused():
+        reader.warn(f"{path}.{key}", f"{state_type} does not use {key}; ignored{did_you_mean(key, sorted(f.used))}")
+    return params if f.ok else None
 
 
-def _take_off(f: _Fields):
+def _take_off(f: ObjectFields) -> TakeOffParams | None:
     height = f.number("height", positive=True, usage="a height above the take-off point in m, > 0")
     return TakeOffParams(height) if height is not None else None
 
 
-def _land(f: _Fields):
+def _land(f: ObjectFields) -> LandParams:
     return LandParams(f.number("height", default=None, usage="a number (m); landing does not use it"))
 
 
-def _follow_path(f: _Fields):
-    path = f.path_items("path")
+def _follow_path(f: ObjectFields) -> FollowPathParams | None:
+    path = _path_items(f, "path")
     mode = f.integer("smooth_path_mode", default=0, usage="0 (straight segments) or a spline order >= 1")
     dynamic = f.choice("dynamic", DYNAMICS, default="velocity")
     duration = f.number("duration", default=0.0, minimum=0.0, usage="seconds allowed, >= 0 (0: no limit)")
+    if mode is None or dynamic is None or duration is None:
+        return None
     if path is None:
         return FollowPathParams((), mode, dynamic, duration, from_utm=True)
     return FollowPathParams(path, mode, dynamic, duration)
 
 
-def _basic_move(f: _Fields):
+def _basic_move(f: ObjectFields) -> BasicMoveParams | None:
     move_type = f.choice("move_type", MOVE_TYPES)
     dynamic = f.choice("dynamic", DYNAMICS)
     direction = f.choice("direction", DIRECTIONS)
     value = f.number("value", usage="metres (translation) or degrees (rotation)")
     duration = f.number("duration", default=0.0, minimum=0.0, usage="seconds allowed, >= 0 (0: no limit)")
-    if None in (move_type, dynamic, direction, value):
+    if move_type is None or dynamic is None or direction is None or value is None or duration is None:
         return None
     return BasicMoveParams(move_type, dynamic, direction, value, duration)
 
 
-def _target(f: _Fields):
+def _target(f: ObjectFields) -> int | None:
     return f.integer("target_ID", usage="the ID of the agent to follow (Agents_Config)")
 
 
-def _follow_agent_ad(f: _Fields):
+def _follow_agent_ad(f: ObjectFields) -> FollowAgentADParams | None:
     target = _target(f)
     distance = f.number("distance", positive=True, usage="a distance behind the target in m, > 0")
     duration = f.number("duration", default=0.0, minimum=0.0, usage="seconds to follow, >= 0 (0: until preempted)")
-    return None if None in (target, distance) else FollowAgentADParams(target, distance, duration)
-
-
-def _follow_agent_ap(f: _Fields):
-    target = _target(f)
-    pos = f._get("pos", True, "[x, y, z], the offset from the target in m")
-    duration = f.number("duration", default=0.0, minimum=0.0, usage="seconds to follow, >= 0 (0: until preempted)")
-    if pos is _MISSING:
+    if target is None or distance is None or duration is None:
         return None
-    if not (isinstance(pos, list) and len(pos) == 3 and all(_is_number(v) for v in pos)):
+    return FollowAgentADParams(target, distance, duration)
+
+
+def _follow_agent_ap(f: ObjectFields) -> FollowAgentAPParams | None:
+    target = _target(f)
+    pos = f.get("pos", True, "[x, y, z], the offset from the target in m")
+    duration = f.number("duration", default=0.0, minimum=0.0, usage="seconds to follow, >= 0 (0: until preempted)")
+    if pos is MISSING:
+        return None
+    if not (isinstance(pos, list) and len(pos) == 3 and all(is_number(v) for v in pos)):
         f.fail("pos", f"expected [x, y, z], the offset from the target in m, got {pos!r}")
         return None
-    return None if target is None else FollowAgentAPParams(target, tuple(float(v) for v in pos), duration)
+    if target is None or duration is None:
+        return None
+    x, y, z = (float(v) for v in pos)
+    return FollowAgentAPParams(target, (x, y, z), duration)
 
 
-def _save_csv(f: _Fields):
+def _save_csv(f: ObjectFields) -> SaveCsvParams:
     return SaveCsvParams()
 
 
-def _set_mission(f: _Fields):
-    path = f.path_items("path")
+def _set_mission(f: ObjectFields) -> SetMissionParams | None:
+    path = _path_items(f, "path")
     include_takeoff = f.flag("include_takeoff", False)
     include_land = f.flag("include_land", False)
     if path is None:
@@ -557,20 +429,19 @@ def _set_mission(f: _Fields):
     return SetMissionParams(path, include_takeoff, include_land)
 
 
-def _world_config(f: _Fields):
+def _world_config(f: ObjectFields) -> WorldConfigParams | None:
     action = f.choice("action", WORLD_ACTIONS)
-    raw_id = f._get("id", action in ("spawn", "delete"), "the world (part) id, e.g. 1")
+    raw_id = f.get("id", action in ("spawn", "delete"), "the world (part) id, e.g. 1")
     world_id = None
-    if raw_id is not _MISSING:
-        if (_is_int(raw_id) and raw_id >= 0) or (isinstance(raw_id, str) and raw_id.strip()):
+    if raw_id is not MISSING:
+        if (is_integer(raw_id) and raw_id >= 0) or (isinstance(raw_id, str) and raw_id.strip()):
             world_id = str(raw_id)
         else:
             f.fail("id", f"expected an id (a whole number or a name), got {raw_id!r}")
     part = None
-    raw_part = f._get("world_part_def", action == "add",
-                      f"\"{FROM_HYPERPARAMETERS}\" or a list of world volumes")
-    if raw_part is not _MISSING:
-        where = f"{f.path}.world_part_def"
+    raw_part = f.get("world_part_def", action == "add", f"\"{FROM_HYPERPARAMETERS}\" or a list of world volumes")
+    if raw_part is not MISSING:
+        where = f.path_of("world_part_def")
         if raw_part == FROM_HYPERPARAMETERS:
             part = WorldPartDef(from_hyperparameters=True, json_path=where)
         elif isinstance(raw_part, list) and raw_part and all(isinstance(v, dict) for v in raw_part):
@@ -579,35 +450,35 @@ def _world_config(f: _Fields):
             f.fail("world_part_def", f"expected \"{FROM_HYPERPARAMETERS}\" or a non-empty list of world volumes "
                                      f"({{\"name\": ..., \"geometries\": ...}} or {{\"name\": \"JSON\", \"world\": W, "
                                      f"\"subworld\": S}}), got {raw_part!r}")
-    if action == "delete" and raw_part is not _MISSING:
+    if action == "delete" and raw_part is not MISSING:
         f.fail("world_part_def", "delete removes the part named by id; it takes no world_part_def")
     if action is None or not f.ok:
         return None
     return WorldConfigParams(action, world_id, part)
 
 
-def _wait(f: _Fields):
+def _wait(f: ObjectFields) -> WaitParams | None:
     exit_type = f.choice("exit_type", EXIT_TYPES)
     duration = f.number("duration", default=0.0, minimum=0.0, usage="seconds to wait, >= 0")
-    if exit_type == "button" and "duration" in f.raw:
-        f.reader.warn(f"{f.path}.duration", "a button wait ends on the operator's command; duration is ignored")
-    return None if exit_type is None else WaitParams(exit_type, duration)
+    if exit_type == "button" and "duration" in f.obj:
+        f.fields.warn(f.path_of("duration"), "a button wait ends on the operator's command; duration is ignored")
+    return None if exit_type is None or duration is None else WaitParams(exit_type, duration)
 
 
-def _spawn_agents(f: _Fields):
-    poses = f.definitions("initial_poses", "a list of [volume, geometry, kind, arg, yaw?], one per agent in "
-                                           "Agents_Config order")
+def _spawn_agents(f: ObjectFields) -> SpawnAgentsParams | None:
+    poses = _definitions(f, "initial_poses", "a list of [volume, geometry, kind, arg, yaw?], one per agent in "
+                                             "Agents_Config order")
     return SpawnAgentsParams(poses) if poses else None
 
 
-def _algorithm_control(f: _Fields):
+def _algorithm_control(f: ObjectFields) -> AlgorithmControlParams | None:
     name = f.text("name", usage="an algorithm name: simple, orca3d (orca3) or neural_network")
     action = f.text("action", usage="set (select and configure) or configure (only change parameters)")
-    params = f._get("params", False, "a list of parameter names")
-    values = f._get("values", False, "a list of values, one per name")
+    params = f.get("params", False, "a list of parameter names")
+    values = f.get("values", False, "a list of values, one per name")
     text_value = f.text("text_value", default="", usage="a string (e.g. the path of a TorchScript model)")
-    params = [] if params is _MISSING else params
-    values = [] if values is _MISSING else values
+    params = [] if params is MISSING else params
+    values = [] if values is MISSING else values
     if not isinstance(params, list) or not all(isinstance(p, str) for p in params):
         f.fail("params", f"expected a list of parameter names, got {params!r}")
     elif not isinstance(values, list):
@@ -625,12 +496,12 @@ def _algorithm_control(f: _Fields):
         else:
             text_value = model
             params, values = params[:k] + params[k + 1:], values[:k] + values[k + 1:]
-    if not f.ok or name is None or action is None:
+    if not f.ok or name is None or action is None or text_value is None:
         return None
     return AlgorithmControlParams(name, action, tuple(params), tuple(values), text_value)
 
 
-_PARSERS = {
+_PARSERS: dict[str, Callable[[ObjectFields], Parameters | None]] = {
     "take_off": _take_off, "land": _land, "follow_path": _follow_path, "basic_move": _basic_move,
     "follow_agent_ad": _follow_agent_ad, "follow_agent_ap": _follow_agent_ap, "save_csv": _save_csv,
     "set_mission": _set_mission, "world_config": _world_config, "wait": _wait, "spawn_agents": _spawn_agents,
@@ -638,62 +509,85 @@ _PARSERS = {
 }
 
 
-def _definition(reader: _Reader, raw: Any, path: str, allow_yaw: bool) -> PoseDefinition | None:
+# --- pose definitions ----------------------------------------------------------------------------------------------
+
+def _definitions(f: ObjectFields, key: str, usage: str) -> tuple[PoseDefinition, ...]:
+    """A non-empty list of definitions [volume, geometry, kind, arg, yaw?]."""
+    value = f.get(key, True, usage)
+    if value is MISSING:
+        return ()
+    if not isinstance(value, list) or not value:
+        f.fail(key, f"expected {usage}, got {describe(value)}")
+        return ()
+    out = []
+    for index, item in enumerate(value):
+        definition = _definition(f.fields, item, join_path(f.path_of(key), index), allow_yaw=True)
+        if definition is None:
+            f.ok = False
+        else:
+            out.append(definition)
+    return tuple(out)
+
+
+def _path_items(f: ObjectFields, key: str) -> tuple[PoseDefinition, ...] | None:
+    """`[{"definition": [...]}, ...]`; None (no problem) for a path from the UTM."""
+    usage = "a non-empty list of {\"definition\": [volume, geometry, kind, arg]}"
+    value = f.get(key, True, usage)
+    if value is MISSING:
+        return ()
+    if value in FROM_UTM:
+        return None
+    if not isinstance(value, list) or not value:
+        f.fail(key, f"expected {usage} (or \"from utm\"), got {describe(value)}")
+        return ()
+    out = []
+    for index, item in enumerate(value):
+        where = join_path(f.path_of(key), index)
+        if not isinstance(item, dict) or "definition" not in item:
+            f.ok = False
+            f.fields.fail(where, f"expected {{\"definition\": [volume, geometry, kind, arg]}}, got {item!r}")
+            continue
+        for extra in item:
+            if extra != "definition":
+                f.fields.warn(f"{where}.{extra}", "unknown key, ignored; a path item has only 'definition'")
+        definition = _definition(f.fields, item["definition"], f"{where}.definition", allow_yaw=False)
+        if definition is None:
+            f.ok = False
+        else:
+            out.append(definition)
+    return tuple(out)
+
+
+def _definition(reader: JsonFields[None], raw: Any, path: str, allow_yaw: bool) -> PoseDefinition | None:
     usage = "[volume, geometry or \"volume\", kind, arg" + (", yaw?]" if allow_yaw else "]")
     if not isinstance(raw, list) or len(raw) not in ((4, 5) if allow_yaw else (4,)):
         reader.fail(path, f"expected {usage}, got {raw!r}")
         return None
-    volume, geometry, kind, arg = raw[:4]
-    ok = True
-    for index, (value, what) in enumerate(((volume, "a volume name"), (geometry, "a geometry name or \"volume\""))):
-        if not isinstance(value, str) or not value:
-            reader.fail(f"{path}[{index}]", f"expected {what}, got {value!r}")
-            ok = False
-    if kind not in POSE_KINDS:
-        reader.fail(f"{path}[2]", f"unknown kind {kind!r}{_hint(kind, POSE_KINDS)}; use one of {', '.join(POSE_KINDS)}")
+    volume = reader.text(raw[0], f"{path}[0]", "a volume name")
+    geometry = reader.text(raw[1], f"{path}[1]", "a geometry name or \"volume\"")
+    kind = reader.choice(raw[2], f"{path}[2]", POSE_KINDS, noun="kind")
+    if kind is None:
         return None
+    arg = raw[3]
     problem = _arg_problem(kind, arg)
     if problem:
         reader.fail(f"{path}[3]", problem)
-        ok = False
-    yaw = None
-    if len(raw) == 5:
-        if not _is_number(raw[4]):
-            reader.fail(f"{path}[4]", f"expected a yaw in radians, got {raw[4]!r}")
-            ok = False
-        else:
-            yaw = float(raw[4])
-    return PoseDefinition(volume, geometry, kind, arg, yaw, path) if ok else None
+    yaw = reader.number(raw[4], f"{path}[4]", "a yaw in radians") if len(raw) == 5 else None
+    if volume is None or geometry is None or problem or (len(raw) == 5 and yaw is None):
+        return None
+    return PoseDefinition(volume, geometry, kind, arg, yaw, path)
 
 
 def _arg_problem(kind: str, arg: Any) -> str:
-    if kind == "matrix" and not (isinstance(arg, list) and len(arg) == 3 and all(_is_int(v) and v >= 0 for v in arg)):
+    if kind == "matrix" and not (isinstance(arg, list) and len(arg) == 3 and all(is_integer(v) and v >= 0
+                                                                                  for v in arg)):
         return f"a matrix cell is [i, j, k] (whole numbers from 0), got {arg!r}"
-    if kind == "random" and not (_is_int(arg) and arg >= 1):
+    if kind == "random" and not (is_integer(arg) and arg >= 1):
         return f"random takes how many poses to draw (a whole number >= 1), got {arg!r}"
     if kind == "coordinates" and not (isinstance(arg, list) and arg):
         return f"coordinates take [[x, y, z], [roll, pitch, yaw] or [qx, qy, qz, qw]] or a list of them, got {arg!r}"
-    if kind == "path" and not (arg is None or isinstance(arg, str) or _is_int(arg)):
+    if kind == "path" and not (arg is None or isinstance(arg, str) or is_integer(arg)):
         return f"path takes a zigzag name (\"Zigzag\") or index, got {arg!r}"
-    if kind == "poses" and not (_is_int(arg) and arg >= 0):
+    if kind == "poses" and not (is_integer(arg) and arg >= 0):
         return f"poses takes the index of a set of poses (from 0), got {arg!r}"
     return ""
-
-
-# --- small helpers -------------------------------------------------------------------------------------------------
-
-def _is_int(value: Any) -> bool:
-    return isinstance(value, Integral) and not isinstance(value, bool)
-
-
-def _is_number(value: Any) -> bool:
-    return isinstance(value, Real) and not isinstance(value, bool) and math.isfinite(value)
-
-
-def _hint(value: Any, options) -> str:
-    close = difflib.get_close_matches(str(value), [str(o) for o in options], n=1, cutoff=0.6)
-    return f" (did you mean '{close[0]}'?)" if close else ""
-
-
-def _kind(value: Any) -> str:
-    return {dict: "an object", list: "a list", str: "a string"}.get(type(value), repr(value))

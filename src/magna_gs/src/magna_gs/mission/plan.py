@@ -52,6 +52,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections import defaultdict
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 from magna_gs.mission.model import (
@@ -61,10 +62,13 @@ from magna_gs.mission.model import (
     CONCURRENCE_DEFAULT_OUTCOME,
     MISSION_OUTCOMES,
     FollowPathParams,
+    Ids,
     Mission,
     Node,
+    NodeType,
     Parameters,
     SetMissionParams,
+    StateType,
 )
 from magna_gs.mission.outcome_callbacks import CHILD_TERMINATION_CALLBACKS, OUTCOME_CALLBACKS
 
@@ -82,7 +86,7 @@ class PlannedState:
 
     label: str
     node: Node | None  # None for the mission's root machine
-    kind: str  # CBState | SimpleActionState | StateMachine | Concurrence | Sequence
+    kind: NodeType
     uav: int | None = None  # SimpleActionState: the UAV that flies it
     ids: tuple[int, ...] = ()  # CBState: the agents it addresses
     parameters: Parameters | None = None  # leaves: what the factory is given (wp: one waypoint)
@@ -95,19 +99,26 @@ class PlannedState:
     absent: bool = False  # SimpleActionState of a UAV the mission does not configure: ends ABSENT_UAV_OUTCOME at once
 
     @property
+    def file_node(self) -> Node:
+        """The node of the file this state comes from: every state's but the mission's root machine's."""
+        if self.node is None:
+            raise AttributeError(f"{self.label} is the mission's root machine, which no node of the file writes")
+        return self.node
+
+    @property
     def json_path(self) -> str:
         return self.node.json_path if self.node is not None else "State_Machine"
 
     @property
-    def state_type(self) -> str | None:
+    def state_type(self) -> StateType | None:
         return self.node.state_type if self.node is not None else None
 
-    def walk(self):
+    def walk(self) -> Iterator[PlannedState]:
         yield self
         for child in self.children:
             yield from child.walk()
 
-    def leaves(self):
+    def leaves(self) -> Iterator[PlannedState]:
         return (state for state in self.walk() if not state.children and state.node is not None
                 and not state.node.is_container)
 
@@ -147,11 +158,11 @@ class _Planner:
 
     # --- expansion ------------------------------------------------------------------------------------------------
 
-    def _agent_ids(self, node: Node, ids, what: str) -> list[int]:
+    def _agent_ids(self, node: Node, ids: Ids, what: str) -> list[int]:
         """ids meaning agents -> the list; problems for ids not in Agents_Config."""
         if ids == "all":
             return list(self.agents)
-        listed = [ids] if isinstance(ids, int) else list(ids)
+        listed = _written_ids(ids)
         unknown = [i for i in listed if i not in self.agents]
         if unknown:
             self.fail(f"{node.json_path}.ids", f"{what} {', '.join(map(str, unknown))} not in "
@@ -201,7 +212,7 @@ class _Planner:
                       "waypoint of parameters.path)")
             return []
         else:
-            uavs = [node.ids] if isinstance(node.ids, int) else list(node.ids) if node.ids != "all" else self.agents
+            uavs = list(self.agents) if node.ids == "all" else _written_ids(node.ids)
         absent = [uav for uav in uavs if uav not in self.agents]
         if absent:
             labels = ", ".join(f"'{uav}_{node.name}'" for uav in absent)
@@ -230,7 +241,7 @@ class _Planner:
         if node.ids is None or node.ids == "all":
             numbers = list(range(1, count + 1))
         else:
-            numbers = [node.ids] if isinstance(node.ids, int) else list(node.ids)
+            numbers = _written_ids(node.ids)
             bad = [n for n in numbers if not 1 <= n <= count]
             if bad:
                 self.fail(f"{node.json_path}.ids", f"waypoint(s) {', '.join(map(str, bad))} out of range: "
@@ -257,7 +268,7 @@ class _Planner:
         elif node.ids_var == "agent":
             ids = self._agent_ids(node, node.ids, "agent")
         else:
-            ids = [node.ids] if isinstance(node.ids, int) else list(node.ids)
+            ids = _written_ids(node.ids)
         out = []
         for container_id in ids:
             inner = _Context(container_id) if node.ids_var == "agent" else ctx
@@ -273,7 +284,7 @@ class _Planner:
 
     # --- outcomes -------------------------------------------------------------------------------------------------
 
-    def _unique_labels(self, state: PlannedState, declared) -> dict[str, PlannedState]:
+    def _unique_labels(self, state: PlannedState, declared: tuple[str, ...]) -> dict[str, PlannedState]:
         labels: dict[str, PlannedState] = {}
         for child in state.children:
             if child.label in labels:
@@ -295,16 +306,16 @@ class _Planner:
         children = state.children
         problems_before = len(self.problems)
         for index, child in enumerate(children):
-            written = dict(child.node.outcomes)
+            written = dict(child.file_node.outcomes)
             following = children[index + 1] if index + 1 < len(children) else None
-            if (child.node.ids_var == "wp" and state.kind == "StateMachine" and following is not None
+            if (child.file_node.ids_var == "wp" and state.kind == "StateMachine" and following is not None
                     and following.node is child.node):
                 written[WP_CHAIN_OUTCOME] = following.label
             transitions = {}
             for outcome, target in written.items():
-                where = f"{child.node.json_path}.outcomes.{outcome}"
+                where = f"{child.json_path}.outcomes.{outcome}"
                 if outcome not in child.outcomes:
-                    if child.node.is_container and outcome in child.node.outcomes:
+                    if child.file_node.is_container and outcome in child.file_node.outcomes:
                         self.warn(where, f"never taken: '{child.label}' cannot end with '{outcome}' (no state inside "
                                   "leads to it)")
                     else:
@@ -322,7 +333,7 @@ class _Planner:
                 if connector in child.outcomes:
                     transitions[connector] = following.label
                 else:
-                    self.fail(f"{state.node.json_path}.connector_outcome", f"'{child.label}' never ends with "
+                    self.fail(f"{state.json_path}.connector_outcome", f"'{child.label}' never ends with "
                               f"'{connector}', so the Sequence cannot go on to '{following.label}'; its outcomes: "
                               f"{', '.join(child.outcomes)}")
             child.transitions = transitions
@@ -331,21 +342,20 @@ class _Planner:
         unhandled: dict[str, list[str]] = defaultdict(list)
         for child in children:
             for outcome in child.outcomes:
-                target = child.transitions.get(outcome)
-                if target is None:
+                goes_to = child.transitions.get(outcome)
+                if goes_to is None:
                     if outcome == PREEMPTED:
                         continue
-                    target = outcome
+                    goes_to = outcome
                     if outcome not in declared:
                         unhandled[outcome].append(child.label)
-                if target not in labels and target not in produced:
-                    produced.append(target)
+                if goes_to not in labels and goes_to not in produced:
+                    produced.append(goes_to)
         ordered = [o for o in declared if o in produced] + [o for o in produced if o not in declared]
         state.outcomes = (*ordered, PREEMPTED)
         if unhandled:
             listing = "; ".join(f"{o} (from {', '.join(sources)})" for o, sources in unhandled.items())
-            path = state.node.json_path if state.node is not None else "State_Machine"
-            self.warn(path, f"outcomes with no transition end {what} with the same name: {listing}")
+            self.warn(state.json_path, f"outcomes with no transition end {what} with the same name: {listing}")
         if children and len(self.problems) == problems_before:  # a bad transition would make others unreachable
             self._reachability(state, labels)
 
@@ -364,12 +374,12 @@ class _Planner:
                           f"{state.label}): no transition leads to it; add one or remove the state")
 
     def _concurrence(self, state: PlannedState) -> None:
-        node = state.node
+        node = state.file_node
         labels = self._unique_labels(state, tuple(node.outcomes))
         for child in state.children:
-            if not child.node.is_container and child.node.outcomes and child.node.json_path not in self._ignored:
-                self._ignored.add(child.node.json_path)
-                self.warn(f"{child.node.json_path}.outcomes", "ignored: the children of a Concurrence have no "
+            if not child.file_node.is_container and child.file_node.outcomes and child.json_path not in self._ignored:
+                self._ignored.add(child.json_path)
+                self.warn(f"{child.json_path}.outcomes", "ignored: the children of a Concurrence have no "
                           "transitions (its occurrencies_outcome_map decides)")
         outcome_map: dict[str, dict[str, str]] = {}
         for outcome, conditions in node.occurrencies_outcome_map.items():
@@ -391,7 +401,8 @@ class _Planner:
             impossible, foreign = [], []
             for label, wanted in expanded.items():
                 child = labels[label]
-                vocabulary = set(child.outcomes) | (set(child.node.outcomes) if child.node.is_container else set())
+                vocabulary = set(child.outcomes) | (set(child.file_node.outcomes) if child.file_node.is_container
+                                                    else set())
                 if wanted not in vocabulary:  # the original's map simply never matched (its files have these)
                     foreign.append(f"'{label}' never ends with '{wanted}' (its outcomes: {', '.join(child.outcomes)})")
                 elif wanted not in child.outcomes:
@@ -423,6 +434,13 @@ class _Planner:
         state.outcomes = (*declared, *[o for o in possible if o not in declared and o != PREEMPTED], PREEMPTED)
         state.outcome_map = outcome_map
         state.default_outcome = CONCURRENCE_DEFAULT_OUTCOME
+
+
+def _written_ids(ids: Ids) -> list[int]:
+    """The ids a node writes out: [id] for one, the list for several; "all" (which the caller expands) none."""
+    if isinstance(ids, int):
+        return [ids]
+    return [] if isinstance(ids, str) else list(ids)
 
 
 def plan_mission(mission: Mission) -> Plan:
