@@ -1,10 +1,10 @@
 """Migrated mission JSON -> `model.Mission`, checking every field once.
 
-Every problem is collected (not only the first: magna_common.json_fields, collecting) and
-reported together as one `MissionError`, each line `file: JSON.path: what is wrong; what to
-write instead`.
-Paths are the file's own (keys renamed by the migration are mapped back). Keys a
-state does not use are warnings: the original ignored them, and real missions carry some.
+Every problem is collected, not only the first (magna_common.json_fields in its collecting
+mode), and reported together as one `MissionError`, each line `file: JSON.path: what is wrong;
+what to write instead`. Paths are the file's own (keys renamed by the migration are mapped
+back). Keys a state does not use are warnings: the original ignored them, and real missions
+carry some.
 """
 from __future__ import annotations
 
