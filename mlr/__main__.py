@@ -10,7 +10,7 @@ from pathlib import Path
 sys.path.append(str(Path(__file__).resolve().parents[1] / "src" / "magna_common" / "src"))  # standard library only
 from magna_common.workspace_bootstrap import run_module_in_workspace  # noqa: E402
 
-run_module_in_workspace("mlr", __file__, modules=("magna_uav", "magna_master", "numpy", "torch", "yaml"))
+run_module_in_workspace("mlr", __file__, modules=("magna_uav", "magna_gs", "numpy", "torch", "yaml"))
 
 from mlr.cli import main  # noqa: E402
 

@@ -3,4 +3,4 @@ from tests.support import exit_unless_in_workspace
 
 
 def pytest_configure(config):
-    exit_unless_in_workspace("mlr", ("numpy", "torch", "rospy", "magna_uav", "magna_master"))
+    exit_unless_in_workspace("mlr", ("numpy", "torch", "rospy", "magna_uav", "magna_gs"))

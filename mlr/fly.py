@@ -32,8 +32,9 @@ import threading
 from dataclasses import dataclass
 from pathlib import Path
 
-from magna_common.cli_vocabulary import add_output, add_rtf, add_search_path
+from magna_common.cli_vocabulary import add_output, add_rtf, add_search_path, parse_rtf
 from magna_common.errors import UsageError
+from magna_common.storage_tree import StorageError, StorageKey, check_component, existing_simulations
 from mlr.flight_metrics import Comparison, read_batch, write_comparison
 from mlr.nn_mission import VARIANT_SUFFIX, Change, FlyError, mission_roles, nn_variant, write_variant
 
@@ -115,9 +116,8 @@ def _spec_arg(value: str) -> str:
 
 
 def prepare(args) -> FlyPlan:
-    """Check everything and write the network's mission; FlyError/BatchError/StorageError before anything flies."""
-    from magna_master import storage
-    from magna_master.batch import parse_rtf, resolve_inputs
+    """Check everything and write the network's mission; FlyError/InputError/StorageError before anything flies."""
+    from magna_gs.inputs import resolve_inputs
     from magna_uav.nai.neural import NeuralModelError, load_model
 
     if args.n_iter < 1:
@@ -125,7 +125,7 @@ def prepare(args) -> FlyPlan:
     rtf = parse_rtf(args.rtf)
     orca_name, nn_name = f"{args.name}_orca", f"{args.name}_nn"
     for value in (orca_name, nn_name):
-        storage.check_component(value, "--name")
+        check_component(value, "--name")
     magna = repo_root() / "magna"
     if not os.access(magna, os.X_OK):
         raise FlyError(f"{magna}: no magna command there; set MAGNA_ROOT to the repository root")
@@ -153,18 +153,18 @@ def prepare(args) -> FlyPlan:
     data_root = args.data_root.expanduser().resolve()
     out = (args.output.expanduser() if args.output is not None else data_root / "mlr" / "fly" / args.name).resolve()
     nn_submission = f"{inputs.submission}{VARIANT_SUFFIX}"
-    orca_dataset = storage.StorageKey(inputs.world, inputs.subworld, inputs.mission, inputs.submission,
-                                      orca_name).dataset_dir(data_root, 1)
-    nn_dataset = storage.StorageKey(inputs.world, inputs.subworld, inputs.mission, nn_submission,
-                                    nn_name).dataset_dir(data_root, 1)
+    orca_dataset = StorageKey(inputs.world, inputs.subworld, inputs.mission, inputs.submission,
+                              orca_name).dataset_dir(data_root, 1)
+    nn_dataset = StorageKey(inputs.world, inputs.subworld, inputs.mission, nn_submission,
+                            nn_name).dataset_dir(data_root, 1)
     # magna run would stop at such a conflict too, but only after the other batch had flown
     if args.skip_orca:
-        if not storage.existing_simulations(orca_dataset):
+        if not existing_simulations(orca_dataset):
             raise FlyError(f"--skip-orca: {orca_dataset} holds no simulations; run without --skip-orca first")
-    elif args.policy is None and storage.existing_simulations(orca_dataset):
+    elif args.policy is None and existing_simulations(orca_dataset):
         raise FlyError(f"{orca_dataset} holds simulations already; nothing was started. Choose --append, "
                        "--overwrite, --skip-orca (compare with them) or another --name")
-    if args.policy is None and storage.existing_simulations(nn_dataset):
+    if args.policy is None and existing_simulations(nn_dataset):
         raise FlyError(f"{nn_dataset} holds simulations already; nothing was started. Choose --append, "
                        "--overwrite or another --name")
 
@@ -274,13 +274,12 @@ def fly(plan: FlyPlan) -> int:
 
 
 def run(args) -> int:
-    from magna_master import storage
-    from magna_master.batch import BatchError
+    from magna_gs.inputs import InputError
 
     try:
         plan = prepare(args)
         return fly(plan)
-    except (FlyError, BatchError, storage.StorageError) as err:
+    except (FlyError, InputError, StorageError) as err:
         raise UsageError(" ".join(str(err).split())) from None
 
 
