@@ -24,6 +24,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from magna_common.cli_vocabulary import add_force, add_output, add_rtf, add_search_path
+from magna_common.files import write_atomically, write_text_atomically
 
 HELP = "reproduce the thesis experiment: two datasets of 80 simulations, four architectures, flights vs ORCA-3D"
 DESCRIPTION = __doc__
@@ -198,9 +199,7 @@ def report(scenarios: list[Scenario], out: Path) -> Path:
         comparison = out / scenario.key / "fly" / "comparison.md"
         lines += [f"### {scenario.title}", "", comparison.read_text().strip() if comparison.is_file()
                   else "(not flown yet: run the fly stage)", ""]
-    path = out / "report.md"
-    out.mkdir(parents=True, exist_ok=True)
-    path.write_text("\n".join(lines) + "\n")
+    path = write_text_atomically(out / "report.md", "\n".join(lines) + "\n", overwrite=True)
     if bars:
         _figure(bars, out / "report.png")
     return path
@@ -231,7 +230,7 @@ def _figure(bars: list, path: Path) -> None:
     ax.legend(handles=handles, loc="lower right", fontsize=8)
     ax.set_title("Networks learning ORCA-3D: test accuracy (+yaw: trained with yaw augmentation)")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    write_atomically(path, lambda file: fig.savefig(file, format="png", dpi=110), overwrite=True, binary=True)
     plt.close(fig)
 
 
