@@ -7,10 +7,9 @@ Volume names are unique across parts, so a mission's `[volume, ...]` names one p
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from pathlib import Path
 
+from magna_common.files import write_atomically
 from magna_common.search_path import find_world_file, world_candidates, world_folders
 from magna_worlds.errors import WorldError
 from magna_worlds.generate import ResolvedWorld, resolve_world, world_record
@@ -88,15 +87,6 @@ class WorldRegistry:
         return {"seed": self.seed, "parts": {pid: world_record(part) for pid, part in self.parts.items()}}
 
 
-def write_json_atomically(path, data) -> None:
-    """Write through a temporary file in the same folder, so a reader never sees half a file."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as out:
-            json.dump(data, out, indent=1)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+def write_json_atomically(path, data) -> Path:
+    """`data` as JSON in `path`, replacing an older file; a reader never sees half a file (magna_common.files)."""
+    return write_atomically(path, lambda out: json.dump(data, out, indent=1), overwrite=True)
