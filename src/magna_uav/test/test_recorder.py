@@ -1,15 +1,12 @@
 """The recorder: a fixed, documented column set; one row per control step; files written all or nothing."""
 import math
-import os
 import re
-import stat
 from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from magna_common import files
 from magna_uav import recorder
 from magna_uav.recorder import Recorder, column_kind, columns, depth_path, read_csv, read_depth
 from magna_uav.world_view import AgentState, Obstacle, WorldView
@@ -292,32 +289,6 @@ def test_a_crash_in_the_csv_after_the_depth_file_removes_the_new_depth_file(tmp_
     with pytest.raises(RuntimeError, match="killed"):
         rec.save_csv(tmp_path / "uav_1.csv")
     assert list(tmp_path.iterdir()) == []
-
-
-def test_write_atomically_refuses_a_file_that_appears_while_writing(tmp_path):
-    target = tmp_path / "x.txt"
-
-    def racing_writer(out):
-        out.write("ours")
-        target.write_text("theirs")  # someone else got there first
-
-    with pytest.raises(FileExistsError):
-        files.write_atomically(target, racing_writer)
-    assert target.read_text() == "theirs"
-    assert [p.name for p in tmp_path.iterdir()] == ["x.txt"]
-    files.write_atomically(target, lambda out: out.write(b"bytes"), overwrite=True, binary=True)
-    assert target.read_bytes() == b"bytes"
-
-
-def test_write_atomically_gives_the_mode_a_plain_open_would(tmp_path):
-    old = os.umask(0o027)
-    try:
-        made = files.write_atomically(tmp_path / "new.txt", lambda out: out.write("x"))
-        replaced = files.write_atomically(made, lambda out: out.write("y"), overwrite=True)
-    finally:
-        os.umask(old)
-    assert stat.S_IMODE(made.stat().st_mode) == 0o640  # 0o666 less the umask, not mkstemp's 0o600
-    assert stat.S_IMODE(replaced.stat().st_mode) == 0o640
 
 
 def test_depth_frames_round_trip_by_row_index(tmp_path):

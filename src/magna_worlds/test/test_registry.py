@@ -6,7 +6,7 @@ import pytest
 
 from magna_worlds.errors import WorldError
 from magna_worlds.query import QueryError
-from magna_worlds.registry import WorldRegistry, write_json_atomically
+from magna_worlds.registry import WorldRegistry
 from tests.support import CORPUS
 
 CORPUS_WORLDS = CORPUS / "Worlds"
@@ -127,21 +127,3 @@ def test_record_is_json_and_holds_every_part(registry):
     frames = [f for g in delivery["geometries"] for s in g["pose_sets"] for f in s["frames"]]
     assert "GS_takeoff_pos_1_0_0" in frames
     assert {o["name"] for o in delivery["obstacles"]} >= {"O1_del_obs_0", "D1_rec_obs_0", "D2_rec_obs_0"}
-
-
-def test_write_json_atomically(tmp_path):
-    target = tmp_path / "deep" / "world.json"
-    write_json_atomically(target, {"a": [1, 2.5, "x"]})
-    assert json.loads(target.read_text()) == {"a": [1, 2.5, "x"]}
-    write_json_atomically(target, {"b": 2})  # replaces
-    assert json.loads(target.read_text()) == {"b": 2}
-    assert [p.name for p in target.parent.iterdir()] == ["world.json"]  # no temporary file left
-
-
-def test_write_json_atomically_keeps_the_old_file_when_writing_fails(tmp_path):
-    target = tmp_path / "world.json"
-    write_json_atomically(target, {"good": True})
-    with pytest.raises(TypeError):
-        write_json_atomically(target, {"good": 1, "bad": object()})
-    assert json.loads(target.read_text()) == {"good": True}
-    assert [p.name for p in tmp_path.iterdir()] == ["world.json"]

@@ -9,7 +9,6 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from magna_common.files import write_atomically
 from magna_common.search_path import find_world_file, world_candidates, world_folders
 from magna_worlds.errors import WorldError
 from magna_worlds.generate import ResolvedWorld, resolve_world, world_record
@@ -85,8 +84,3 @@ class WorldRegistry:
 
     def record(self) -> dict:
         return {"seed": self.seed, "parts": {pid: world_record(part) for pid, part in self.parts.items()}}
-
-
-def write_json_atomically(path, data) -> Path:
-    """`data` as JSON in `path`, replacing an older file; a reader never sees half a file (magna_common.files)."""
-    return write_atomically(path, lambda out: json.dump(data, out, indent=1), overwrite=True)

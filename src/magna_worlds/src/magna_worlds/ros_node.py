@@ -28,11 +28,12 @@ from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import MarkerArray
 
 from magna_common import ros_names as names
+from magna_common.records import Hyperparameters, WorldRecord
 from magna_worlds.errors import WorldError
 from magna_worlds.generate import ResolvedWorld
 from magna_worlds.markers import OBSTACLE_COLOR, world_markers
 from magna_worlds.query import QueryError
-from magna_worlds.registry import WorldRegistry, write_json_atomically
+from magna_worlds.registry import WorldRegistry
 
 HELP = """\
 magna_worlds world node: loads world parts (ROS-MAGNA world JSON), publishes every
@@ -70,8 +71,8 @@ class WorldNode:
         # box of ours would never replace its boundaries.
         if rospy.has_param(names.WORLD):  # what the node tells others: origin_geo, boundaries
             rospy.delete_param(names.WORLD)
-        hyper = rospy.get_param(names.HYPERPARAMETERS, {}) or {}
-        seed = int(rospy.get_param("~seed", hyper.get("seed", 0) or 0))
+        hyper = Hyperparameters.from_param(rospy.get_param(names.HYPERPARAMETERS, {}))
+        seed = int(rospy.get_param("~seed", hyper.seed or 0))
         extra = [Path(p) for p in rospy.get_param("~worlds_path", [])]
         self.registry = WorldRegistry(seed)
         self.registry.search_path = extra + self.registry.search_path
@@ -109,11 +110,11 @@ class WorldNode:
                 elif definition and definition != "from_hyperparameters":
                     part = self.registry.add_inline(req.id, definition)
                 else:
-                    hyper = rospy.get_param(names.HYPERPARAMETERS, {}) or {}
-                    if not hyper.get("world") or not hyper.get("subworld"):
+                    hyper = Hyperparameters.from_param(rospy.get_param(names.HYPERPARAMETERS, {}))
+                    if not hyper.world or not hyper.subworld:
                         return AddWorldPartResponse(False, f"world: empty, and {names.HYPERPARAMETERS} has no "
                                                     "world/subworld; give world and subworld or definition_json", [])
-                    part = self.registry.add_named(req.id, hyper["world"], hyper["subworld"])
+                    part = self.registry.add_named(req.id, hyper.world, hyper.subworld)
             except WorldError as err:
                 return AddWorldPartResponse(False, str(err), [])
             message = self._after_add(req.id)
@@ -243,7 +244,8 @@ class WorldNode:
             self.flown[part_id] = dict(part, deleted=False)
         for part_id in self.flown.keys() - current["parts"].keys():
             self.flown[part_id]["deleted"] = True
-        write_json_atomically(self.record_path, {"seed": current["seed"], "parts": self.flown})
+        record = {"seed": current["seed"], "parts": self.flown}
+        WorldRecord.from_dict(record, self.record_path).write(self.record_path)
 
 
 def main(argv=None) -> int:
