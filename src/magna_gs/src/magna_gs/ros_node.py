@@ -402,14 +402,15 @@ class GroundStation:
                                               float(rospy.get_param("~control_rate", 10.0)),
                                               rospy.get_param("~manager_output", "log"),
                                               float(rospy.get_param("~button_timeout", 0.0)), self.bag)
-        self._start_utm()
-        self._load_fleet()
-        self.machine = build_machine(self.mission, RosStateFactory(self.services))
-        self.introspection = IntrospectionServer("mission", self.machine)
+        # What a link-lost callback of the fleet's bridges touches exists before the fleet is loaded.
         self.statuses: dict[int, dict] = {c.id: {} for c in self.mission.agents}
         self.critical_events: list[tuple[int, str]] = []
         self.lock = threading.Lock()
         self.critical = rospy.Publisher(GS_CRITICAL_EVENT, String, queue_size=1, latch=True)
+        self._start_utm()
+        self._load_fleet()
+        self.machine = build_machine(self.mission, RosStateFactory(self.services))
+        self.introspection = IntrospectionServer("mission", self.machine)
         for config in self.mission.agents:
             rospy.Subscriber(ual(config.id, "pose"), PoseStamped, self._on_pose, config.id, queue_size=1)
             rospy.Subscriber(ual(config.id, "state"), UalState, self._on_ual_state, config.id, queue_size=1)
