@@ -8,7 +8,6 @@ import pytest
 
 from magna_common import geo
 from magna_mavlink import autopilot as ap
-from magna_mavlink.arrival import Arrival
 from magna_mavlink.backend import CommandRefused
 from magna_mavlink.commands import POSITION_AND_YAW, VELOCITY_AND_YAW_RATE
 from magna_mavlink.link import mavlink
@@ -267,21 +266,3 @@ def test_ardupilot_copter_takes_off_with_nav_takeoff_in_guided_and_lands_in_land
     assert f.backend.telemetry.position[2] == pytest.approx(1.0, abs=0.165)
     f.backend.land(blocking=True)
     assert f.fake.mode == "LAND"
-
-
-def test_arrival_needs_the_hold_and_gives_up_without_progress():
-    arrival = Arrival((0, 0, 2), yaw=0.0, now=0.0, hold_time=1.0, stuck_time=5.0)
-    arrival.update((0, 0, 1.9), 0.0, now=0.0)
-    arrival.update((0, 0, 1.9), 0.0, now=0.9)
-    assert not arrival.arrived
-    arrival.update((0, 0, 1.7), 0.0, now=1.0)  # out of the 0.165 m radius: the hold starts again
-    arrival.update((0, 0, 1.95), 0.0, now=1.1)
-    arrival.update((0, 0, 1.95), 0.5, now=2.0)  # heading off by more than 0.325 rad: not there
-    arrival.update((0, 0, 1.95), 0.1, now=2.1)
-    arrival.update((0, 0, 1.95), 0.1, now=3.1)
-    assert arrival.arrived
-    stuck = Arrival((5, 0, 2), yaw=None, now=0.0, stuck_time=5.0)
-    for now in range(7):
-        stuck.update((0, 0, 2), 0.0, now=float(now))
-    assert stuck.stuck.startswith("at (0.00, 0.00, 2.00), 5.00 m from (5.00, 0.00, 2.00), and has come no nearer in "
-                                  "5 s")

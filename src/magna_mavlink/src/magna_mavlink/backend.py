@@ -16,7 +16,7 @@ or not) and the UAL commands from its service threads; tests do both on a clock 
   take-off.
 - **Take-off** (PX4): OFFBOARD, then the set-point climbs at `take_off_speed` to the height above
   where the vehicle stood; (ArduPilot): GUIDED and MAV_CMD_NAV_TAKEOFF, then a hold at the height.
-  It succeeds once arrival.Arrival says so: within position_th / 2 of that point, heading within
+  It succeeds once magna_common.ual_arrival.Arrival says so: within position_th / 2 of that point, heading within
   orientation_th / 2, for hold_pose_time.
 - **Land**: AUTO.LAND (PX4) or LAND (ArduPilot), done when the autopilot reports ON_GROUND (or
   disarms, for one that sends no EXTENDED_SYS_STATE).
@@ -38,11 +38,11 @@ import numpy as np
 
 from magna_common import geo
 from magna_common import ros_names as names
+from magna_common.ual_arrival import Arrival
 from magna_common.ual_commands import CommandRefused, finite_vector, require_finite
 
 from . import autopilot as ap
 from . import frames
-from .arrival import Arrival
 from .link import CommandFailed
 from .setpoints import VELOCITY_TIMEOUT, SetPointStream
 from .ual_state import (
@@ -260,7 +260,8 @@ class UalBackend:
     def _arrive(self, op: Operation, target, yaw: float | None, now: float) -> None:
         s = self.settings
         op.phase = "arrive"
-        op.arrival = Arrival(target, yaw, now, s.position_th, s.orientation_th, s.hold_pose_time, s.stuck_time)
+        op.arrival = Arrival(target, yaw, now, s.position_th / 2.0, s.orientation_th / 2.0, s.hold_pose_time,
+                             s.stuck_time)
 
     def _fail(self, op: Operation, reason: str) -> None:
         if not op.finished:

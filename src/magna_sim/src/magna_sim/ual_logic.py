@@ -8,8 +8,8 @@ service call. `update` advances the machine after each physics step.
 Every accepted command bumps `command_id`, so a blocking call can tell when a
 newer command took its place.
 
-Arrival (as GRVC UAL's referencePoseReached, with the UAV's true pose): a multirotor has
-reached a take-off or waypoint target once it has stayed within `arrival_radius` of it
+Arrival (magna_common.ual_arrival, as GRVC UAL's referencePoseReached, with the UAV's true pose):
+a multirotor has reached a take-off or waypoint target once it has stayed within `arrival_radius` of it
 (half of UAL's position_th, and never more than the airframe's accepted_target_radius),
 with its heading within half of orientation_th, for `hold_time` of simulated time. A
 take-off becomes FLYING_AUTO only then. A target that comes no nearer for `stuck_time`
@@ -23,11 +23,11 @@ circles it on its loiter circle, and a landing ends when the plane has rolled to
 from __future__ import annotations
 
 import enum
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from magna_common.ual_arrival import Arrival
 from magna_common.ual_commands import CommandRefused, finite_vector, require_finite
 
 from . import fixed_wing
@@ -56,21 +56,6 @@ class UalSettings:
     landed_height: float = 0.05  # m above the ground that counts as touched down
 
 
-PROGRESS_STEP = 0.05  # m nearer than its best so far that counts as progress toward a target
-
-
-@dataclass
-class _Approach:
-    """How the UAV is doing on the take-off or waypoint of one command."""
-
-    within_since: float | None = None  # sim time it last came within the arrival radius and heading
-    best: float = math.inf  # distance (m) when it last made progress
-    best_time: float = 0.0  # when it last came PROGRESS_STEP nearer (or was within the radius)
-    nearest: float = math.inf  # nearest it has come (m)
-    arrived: bool = False
-    stuck: str | None = None  # why the target is given up on
-
-
 class UalLogic:
     def __init__(self, vehicle: Vehicle, settings: UalSettings = UalSettings()):
         self.vehicle = vehicle
@@ -81,7 +66,7 @@ class UalLogic:
         self._fixed_wing = vehicle.airframe.fixed_wing  # None for a multirotor
         self._last_velocity_time = 0.0
         self._time = 0.0
-        self._approach: _Approach | None = None  # the take-off or waypoint being flown to, if any
+        self._approach: Arrival | None = None  # the take-off or waypoint being flown to, if any
         # A blocking call must never return farther out than MAGNA's own idea of "there".
         self.arrival_radius = min(settings.position_th / 2.0, vehicle.airframe.accepted_target_radius)
 
@@ -142,8 +127,8 @@ class UalLogic:
         self._time = time
         vehicle, state = self.vehicle, self.state
         approach = self._approach
-        if approach is not None and not approach.arrived and approach.stuck is None and self._fixed_wing is None:
-            self._follow(approach, time)
+        if approach is not None and self._fixed_wing is None:
+            approach.update(vehicle.position, vehicle.yaw, time)
         if state == UalState.UNINITIALIZED:
             self.state = UalState.LANDED_ARMED
         elif state == UalState.TAKING_OFF:
@@ -176,7 +161,10 @@ class UalLogic:
     @property
     def stuck(self) -> str | None:
         """Why the current take-off or waypoint is out of reach, or None while it is not (or is reached)."""
-        return None if self._approach is None else self._approach.stuck
+        if self._approach is None or self._approach.stuck is None:
+            return None
+        return (f"UAV {self.vehicle.uav_id} is {self._approach.stuck}: something blocks it or the target is out of "
+                "reach. It keeps flying toward the target until another command")
 
     # --- helpers ---------------------------------------------------------------------------------------------
     def _require(self, state: UalState, command: str) -> None:
@@ -204,33 +192,7 @@ class UalLogic:
 
     def _watch(self) -> None:
         """Follow the UAV toward the setpoint just commanded, for reached() and stuck."""
-        self._approach = _Approach(best_time=self._time)
-
-    def _follow(self, approach: _Approach, time: float) -> None:
-        vehicle, setpoint, settings = self.vehicle, self.vehicle.setpoint, self.settings
-        target, position = setpoint.position, vehicle.position
-        # Plain floats: this runs every physics step while a UAV flies to a target.
-        distance = math.sqrt((float(target[0]) - float(position[0])) ** 2
-                             + (float(target[1]) - float(position[1])) ** 2
-                             + (float(target[2]) - float(position[2])) ** 2)
-        heading = abs((setpoint.yaw - vehicle.yaw + math.pi) % (2 * math.pi) - math.pi)
-        inside = distance <= self.arrival_radius
-        if inside and heading <= settings.orientation_th / 2:
-            if approach.within_since is None:
-                approach.within_since = time
-            if time - approach.within_since >= settings.hold_time:
-                approach.arrived = True
-                return
-        else:
-            approach.within_since = None
-        approach.nearest = min(approach.nearest, distance)
-        if inside or distance < approach.best - PROGRESS_STEP:
-            approach.best, approach.best_time = distance, time
-        if settings.stuck_time > 0 and time - approach.best_time > settings.stuck_time:
-            where = ", ".join(f"{float(c):.2f}" for c in position)
-            goal = ", ".join(f"{float(c):.2f}" for c in target)
-            approach.stuck = (
-                f"UAV {vehicle.uav_id} is at ({where}), {distance:.2f} m from ({goal}), and has come no nearer in "
-                f"{settings.stuck_time:g} s of simulated time (nearest {approach.nearest:.2f} m; arrival needs "
-                f"{self.arrival_radius:g} m): something blocks it or the target is out of reach. It keeps flying "
-                f"toward the target until another command")
+        setpoint, settings = self.vehicle.setpoint, self.settings
+        self._approach = Arrival(setpoint.position, setpoint.yaw, self._time, self.arrival_radius,
+                                 settings.orientation_th / 2, settings.hold_time, settings.stuck_time,
+                                 time_unit="s of simulated time")
