@@ -240,8 +240,9 @@ def check(root: Path = ROOT) -> list[str]:
 
 
 def dot(graph: Graph, layers: list[list[str]]) -> str:
-    """The package graph in graphviz's language, one rank per layer (bottom layer at the bottom)."""
-    lines = ["digraph magna {", "  rankdir=BT;", '  node [shape=box, style="rounded,filled", fillcolor="#eef3fb", '
+    """The package graph in graphviz's language, one rank per layer (bottom layer at the bottom); an arrow
+    goes from the importing package to the imported one, faint when it points at a message package."""
+    lines = ["digraph magna {", "  rankdir=TB;", '  node [shape=box, style="rounded,filled", fillcolor="#eef3fb", '
              'fontname="Helvetica"];', '  edge [color="#555555"];']
     level = {package: n for n, layer in enumerate(layers) for package in layer}
     for n, layer in enumerate(layers):
@@ -249,7 +250,8 @@ def dot(graph: Graph, layers: list[list[str]]) -> str:
         lines.append(f'  {{ rank=same; {" ".join(present)} }}  // layer {n}')
     for (source, target), imports in sorted(graph.edges().items()):
         bad = level.get(target, -1) >= level.get(source, 99)
-        style = ' [color="#c62828", penwidth=2]' if bad else ""
+        messages = not (graph.packages[target] / "__init__.py").exists()
+        style = ' [color="#c62828", penwidth=2]' if bad else ' [color="#cccccc"]' if messages else ""
         lines.append(f"  {source} -> {target}{style};  // {len(imports)} import(s)")
     lines.append("}")
     return "\n".join(lines) + "\n"
