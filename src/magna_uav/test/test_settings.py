@@ -49,6 +49,10 @@ def test_a_mission_file_gives_every_uav_and_says_whether_networks_fly(tmp_path):
     ({"id": 1, "low_battery": 1.0}, "~low_battery is 1.0"),
     ({"id": 1, "model": "no_such_airframe"}, "no_such_airframe"),
     ({"id": 1, "mission_file": "/nonexistent/mission.json"}, "/nonexistent/mission.json"),
+    ({"id": "one"}, "~id is 'one': give a whole number"),
+    ({"id": 1, "uav_ids": 1}, "~uav_ids is 1: give a list"),
+    ({"id": 1, "control_rate": [10]}, "~control_rate is [10]: give a number"),
+    ({"id": 1, "data_dir": 3}, "~data_dir is 3: give a path"),
 ])
 def test_a_bad_parameter_is_named(params, named):
     with pytest.raises(SettingsError) as error:

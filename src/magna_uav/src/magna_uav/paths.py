@@ -89,8 +89,7 @@ def _smooth(waypoints, order, samples_per_metre):
     order = _order(order)
     if order == 0:
         return points, None, None
-    if not (isinstance(samples_per_metre, numbers.Real) and math.isfinite(samples_per_metre)
-            and samples_per_metre > 0):
+    if not _positive_number(samples_per_metre):
         raise ValueError(f"path: samples_per_metre must be a positive number, got {samples_per_metre!r}")
     distinct = points[_distinct(points)]
     if len(distinct) == 1:
@@ -126,6 +125,12 @@ def _distinct(points: np.ndarray) -> np.ndarray:
     return np.concatenate(([0], np.nonzero(steps > _SAME_POINT)[0] + 1))
 
 
+def _positive_number(value: object) -> bool:
+    # `object`: mypy does not count float as a numbers.Real, so checking a float-typed value inline would make
+    # the code after the check unreachable to it
+    return isinstance(value, numbers.Real) and math.isfinite(value) and float(value) > 0
+
+
 class WaypointTracker:
     """Walks the waypoints in order: the current target advances once the UAV's own position is
     within `accepted_radius` of it (inclusive). One update may pass several waypoints when they
@@ -133,7 +138,7 @@ class WaypointTracker:
     """
 
     def __init__(self, waypoints, accepted_radius: float):
-        if not (isinstance(accepted_radius, numbers.Real) and math.isfinite(accepted_radius) and accepted_radius > 0):
+        if not _positive_number(accepted_radius):
             raise ValueError(f"accepted_radius must be a positive number of metres, got {accepted_radius!r}")
         self.waypoints = as_waypoints(waypoints)
         self.accepted_radius = float(accepted_radius)
@@ -160,9 +165,9 @@ class WaypointTracker:
 
     def update(self, position: Sequence[float]) -> bool:
         """Advance past every consecutive waypoint within the radius of `position`; True if it moved."""
-        position = np.asarray(position, dtype=float).reshape(3)
+        here = np.asarray(position, dtype=float).reshape(3)
         start = self._index
-        while not self.done and np.linalg.norm(self.waypoints[self._index] - position) <= self.accepted_radius:
+        while not self.done and np.linalg.norm(self.waypoints[self._index] - here) <= self.accepted_radius:
             self._index += 1
         return self._index != start
 

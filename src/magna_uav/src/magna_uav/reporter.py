@@ -11,14 +11,25 @@ from __future__ import annotations
 import queue
 import threading
 from collections.abc import Callable
+from typing import Protocol
 
 
 def _silent(message: str) -> None:
     pass
 
 
+class Answer(Protocol):
+    """The ground station's answer (a StateActualizationResponse)."""
+
+    @property
+    def success(self) -> bool: ...
+
+    @property
+    def message(self) -> str: ...
+
+
 class Reporter:
-    def __init__(self, uav_id: int, call: Callable[..., object], running: Callable[[], bool],
+    def __init__(self, uav_id: int, call: Callable[..., Answer], running: Callable[[], bool],
                  unreachable: tuple[type[BaseException], ...], warn: Callable[[str], None] = _silent,
                  debug: Callable[[str], None] = _silent, poll: float = 0.5):
         self.uav_id = uav_id

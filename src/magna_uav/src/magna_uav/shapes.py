@@ -24,7 +24,7 @@ a handful of array operations however many obstacles there are.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -95,7 +95,6 @@ class Mesh:
 
 
 Part = Sphere | Box | Cylinder | Capsule | Mesh
-KINDS = (Sphere, Box, Cylinder, Capsule, Mesh)
 
 
 class ShapeTable:
@@ -107,53 +106,64 @@ class ShapeTable:
 
     def __init__(self, parts_of: Sequence[Sequence[Part]]):
         self.count = len(parts_of)
-        rows: dict[type, list[tuple[int, Part]]] = {kind: [] for kind in KINDS}
+        spheres: list[tuple[int, Sphere]] = []
+        boxes: list[tuple[int, Box]] = []
+        cylinders: list[tuple[int, Cylinder]] = []
+        capsules: list[tuple[int, Capsule]] = []
+        meshes: list[tuple[int, Mesh]] = []
         for owner, parts in enumerate(parts_of):
             for part in parts:
-                rows[type(part)].append((owner, part))
-        self._groups = []  # (owners in nondecreasing order, reduceat starts, unique owners, distance function)
+                if isinstance(part, Sphere):
+                    spheres.append((owner, part))
+                elif isinstance(part, Box):
+                    boxes.append((owner, part))
+                elif isinstance(part, Cylinder):
+                    cylinders.append((owner, part))
+                elif isinstance(part, Capsule):
+                    capsules.append((owner, part))
+                elif isinstance(part, Mesh):
+                    meshes.append((owner, part))
+                else:
+                    raise TypeError(f"obstacle {owner}: {part!r} is not a Sphere, Box, Cylinder, Capsule or Mesh")
+        # (reduceat starts, unique owners, distance function) per kind present
+        self._groups: list[tuple[np.ndarray, np.ndarray, Callable[[np.ndarray], np.ndarray]]] = []
 
-        def group(kind, fn):
-            items = rows[kind]
+        def group(items: Sequence[tuple[int, Part]], fn: Callable[[np.ndarray], np.ndarray]) -> None:
             if not items:
                 return
-            owners = np.array([o for o, _ in items], dtype=np.intp)
+            owners = np.array([o for o, _ in items], dtype=np.intp)  # nondecreasing
             starts = np.flatnonzero(np.r_[True, owners[1:] != owners[:-1]])
             self._groups.append((starts, owners[starts], fn))
 
-        spheres = [p for _, p in rows[Sphere]]
         if spheres:
-            self._sph_c = np.array([p.centre for p in spheres])
-            self._sph_r = np.array([p.radius for p in spheres], dtype=float)
-        group(Sphere, self._spheres)
+            self._sph_c = np.array([p.centre for _, p in spheres])
+            self._sph_r = np.array([p.radius for _, p in spheres], dtype=float)
+        group(spheres, self._spheres)
 
-        boxes = [p for _, p in rows[Box]]
         if boxes:
-            self._box_c = np.array([p.centre for p in boxes])
-            self._box_r = np.array([p.rotation for p in boxes])
-            self._box_h = np.array([p.half for p in boxes])
-        group(Box, self._boxes)
+            self._box_c = np.array([p.centre for _, p in boxes])
+            self._box_r = np.array([p.rotation for _, p in boxes])
+            self._box_h = np.array([p.half for _, p in boxes])
+        group(boxes, self._boxes)
 
-        cylinders = [p for _, p in rows[Cylinder]]
         if cylinders:
-            self._cyl_c = np.array([p.centre for p in cylinders])
-            self._cyl_r = np.array([p.rotation for p in cylinders])
-            self._cyl_rad = np.array([p.radius for p in cylinders], dtype=float)
-            self._cyl_hh = np.array([p.half_height for p in cylinders], dtype=float)
-        group(Cylinder, self._cylinders)
+            self._cyl_c = np.array([p.centre for _, p in cylinders])
+            self._cyl_r = np.array([p.rotation for _, p in cylinders])
+            self._cyl_rad = np.array([p.radius for _, p in cylinders], dtype=float)
+            self._cyl_hh = np.array([p.half_height for _, p in cylinders], dtype=float)
+        group(cylinders, self._cylinders)
 
-        capsules = [p for _, p in rows[Capsule]]
         if capsules:
-            self._cap_a = np.array([p.a for p in capsules])
-            self._cap_ab = np.array([p.b - p.a for p in capsules])
+            self._cap_a = np.array([p.a for _, p in capsules])
+            self._cap_ab = np.array([p.b - p.a for _, p in capsules])
             self._cap_ab2 = np.einsum("ij,ij->i", self._cap_ab, self._cap_ab)
-            self._cap_r = np.array([p.radius for p in capsules], dtype=float)
-        group(Capsule, self._capsules)
+            self._cap_r = np.array([p.radius for _, p in capsules], dtype=float)
+        group(capsules, self._capsules)
 
-        rows[Mesh] = [(o, p) for o, p in rows[Mesh] if len(p.triangles)]
-        if rows[Mesh]:
-            self._mesh_prepare([p.triangles for _, p in rows[Mesh]])
-        group(Mesh, self._meshes)
+        meshes = [(o, p) for o, p in meshes if len(p.triangles)]
+        if meshes:
+            self._mesh_prepare([p.triangles for _, p in meshes])
+        group(meshes, self._meshes)
 
     def signed_distances(self, point) -> np.ndarray:
         """(count,) signed distance (m) from `point` to each obstacle's solid, negative inside; inf without parts."""
