@@ -97,7 +97,8 @@ def _waypoint(raw, source: str, path: str) -> Waypoint:
                                       f'e.g. ["Ground_Station", "volume", "coordinates", [[1, 2, 3], [0, 0, 0, 1]]]')
         return Waypoint(definition=tuple(raw))
     if isinstance(raw, list) and len(raw) in (3, 4) and all(_number(v) for v in raw):
-        return Waypoint(position=tuple(float(v) for v in raw[:3]), time=float(raw[3]) if len(raw) == 4 else None)
+        return Waypoint(position=(float(raw[0]), float(raw[1]), float(raw[2])),
+                        time=float(raw[3]) if len(raw) == 4 else None)
     raise _fail(source, path, f"expected [x, y, z], [x, y, z, t] or a pose definition [volume, geometry, kind, arg], "
                               f"got {json.dumps(raw)}")
 
@@ -217,10 +218,10 @@ def timed(points: Sequence, given_times: Sequence[float | None], start_time: flo
           start: np.ndarray | None = None) -> np.ndarray:
     """Planned times of `points`: the given ones, the others at `speed` m/s from the point before (the first
     from `start`, where the UAV is, when known), never earlier than the point before."""
-    points = np.asarray(points, dtype=float).reshape(-1, 3)
-    times = np.empty(len(points))
+    positions = np.asarray(points, dtype=float).reshape(-1, 3)
+    times = np.empty(len(positions))
     previous, now = (None if start is None else np.asarray(start, dtype=float)), float(start_time)
-    for i, point in enumerate(points):
+    for i, point in enumerate(positions):
         travel = 0.0 if previous is None else float(np.linalg.norm(point - previous)) / speed
         given = given_times[i] if i < len(given_times) else None
         now = max(now, float(given)) if given is not None else now + travel
@@ -297,9 +298,9 @@ def segment_conflict(a: tuple, b: tuple, limits: ConflictLimits) -> tuple[float,
         lo, hi = sorted(((0.0 - f) / b_, (e - f) / b_))
         lo, hi = max(lo, 0.0), min(hi, 1.0)
         if lo <= hi:
-            def gap(x: float) -> float:
+            def gap_at(x: float) -> float:
                 return (ta0 + x * (ta1 - ta0)) - (tb0 + (b_ * x + f) / e * (tb1 - tb0))
-            g_lo, g_hi = gap(lo), gap(hi)
+            g_lo, g_hi = gap_at(lo), gap_at(hi)
             if g_lo * g_hi <= 0.0 and g_lo != g_hi:  # the times meet inside the overlap
                 s = lo + (hi - lo) * g_lo / (g_lo - g_hi)
             else:
@@ -367,9 +368,11 @@ class Utm:
         while self.next_issue < len(self.plan.issues) and self.plan.issues[self.next_issue].at <= now:
             issue = self.plan.issues[self.next_issue]
             self.next_issue += 1
-            points, given = [], []
+            points: list[tuple[float, float, float] | np.ndarray] = []
+            given: list[float | None] = []
             for k, waypoint in enumerate(issue.waypoints):
                 if waypoint.definition is None:
+                    assert waypoint.position is not None  # _waypoint makes a position or a definition
                     points.append(waypoint.position)
                     given.append(waypoint.time)
                     continue
@@ -421,9 +424,9 @@ def choose_plan(plan_file: str | Path | None, mission_data, mission_file: str | 
             return found, (f"{mission_file}: UTM: replaced by the plan given to the run ({plan_file}); "
                            f"the mission's own plan is not flown")
         return found, ""
-    found = mission_plan(mission_data, mission_file)
-    if found is not None:
-        return found, ""
+    from_mission = mission_plan(mission_data, mission_file)
+    if from_mission is not None:
+        return from_mission, ""
     warning = ""
     if mission_uses_utm(mission_data):
         warning = (f"{mission_file}: the mission flies UTM flight plans (a follow_path \"from utm\") but "

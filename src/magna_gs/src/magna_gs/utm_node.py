@@ -147,7 +147,9 @@ def main(argv=None) -> int:
     limits = plan.limits
     distance, time_limit = rospy.get_param("~distance", limits.distance), rospy.get_param("~time", limits.time)
     plan = type(plan)(plan.source, plan.issues, type(limits)(float(distance), float(time_limit)), plan.speed)
-    agents = data.get("Agents_Config", data.get("UAVs_Config", [])) if isinstance(data, dict) else []
+    agents = []
+    if isinstance(data, dict):
+        agents = data["Agents_Config"] if "Agents_Config" in data else data.get("UAVs_Config", [])
     ids = [int(a["ID"]) for a in agents if isinstance(a, dict) and "ID" in a]
     ids = sorted(set(ids) | {i for issue in plan.issues for i in issue.ids})
     rospy.loginfo(f"UTM: {len(plan.issues)} flight plans from {plan.source} for UAVs {ids}; conflicts within "

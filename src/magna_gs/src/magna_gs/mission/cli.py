@@ -195,7 +195,7 @@ def _check(args) -> int:
     build_machine(loaded.mission, InertFactory(), loaded.plan)  # magna_sm validates the machine it would run
     for warning in loaded.warnings:
         print(f"magna mission: warning: {' '.join(warning.split())}", file=sys.stderr)
-    world_line, problems = "", []
+    world_line, problems = "", list[str]()
     if args.world:
         world_line, problems = _check_world(loaded.mission, args)
     print(summary(loaded, world_line))

@@ -201,7 +201,7 @@ Parameters = ActionParameters | CallbackParameters
 
 # --- the tree ------------------------------------------------------------------------------------------------------
 
-Ids = int | tuple[int, ...] | str  # an id, a list of ids, or "all"
+Ids = int | tuple[int, ...] | Literal["all"]  # an id, a list of ids, or "all"
 
 
 @dataclass(frozen=True)
