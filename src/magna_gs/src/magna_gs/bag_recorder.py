@@ -21,6 +21,7 @@ import time
 import xmlrpc.client
 from collections.abc import Iterable
 from pathlib import Path
+from typing import Any
 
 import rosgraph
 import rosgraph.names
@@ -70,9 +71,11 @@ class BagRecorder:
         """The topics the recorder has a publisher connection on now (empty while it is not up)."""
         try:
             uri = rosgraph.Master(WATCHER).lookupNode(self.node)
-            code, _, links = xmlrpc.client.ServerProxy(uri, transport=TimeoutTransport(2.0)).getBusInfo(WATCHER)
+            # XML-RPC answers are untyped: the node API answers [code, status message, rows]
+            answer: Any = xmlrpc.client.ServerProxy(uri, transport=TimeoutTransport(2.0)).getBusInfo(WATCHER)
         except (rosgraph.MasterException, OSError, xmlrpc.client.Error):
             return set()
+        code, _, links = answer
         # a row: connection id, the other end, direction ("i": inbound), transport, topic[, connected]
         return {row[4] for row in links if row[2] == "i" and (len(row) < 6 or row[5])} if code == 1 else set()
 

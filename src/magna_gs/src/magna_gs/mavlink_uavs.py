@@ -50,7 +50,8 @@ def resolve_origin(fleet: Fleet | None, world_origin) -> tuple[tuple[float, floa
     if fleet is not None and fleet.origin_geo is not None:
         return fleet.origin_geo, f"origin_geo of {fleet.source}"
     if world_origin:
-        return tuple(float(v) for v in world_origin), "the world's origin_geo"
+        lat, lon, alt = (float(v) for v in world_origin)  # the world node sets [lat, lon, alt]
+        return (lat, lon, alt), "the world's origin_geo"
     return PX4_SITL_HOME, "PX4 SITL's default home (neither the fleet nor the world has origin_geo)"
 
 
@@ -74,7 +75,7 @@ class MavlinkUavs:
         self.lost: dict[int, str] = {}  # UAV id -> what its bridge said when the link went
         self._states: dict[int, int] = {}
         self._lock = threading.Lock()
-        self._subscribers = []
+        self._subscribers: list[rospy.Subscriber] = []
         self.on_link_lost = lambda uav_id, text: None  # set by the ground station
 
     def flies(self, uav_id: int) -> bool:
@@ -104,9 +105,10 @@ class MavlinkUavs:
                                                   queue_size=10))
         # Its errors go to an unnamed file, not a pipe: a pipe nobody reads would block a talkative node.
         errors = tempfile.TemporaryFile("w+")
-        quiet = {} if self.output == "screen" else {"stdout": subprocess.DEVNULL, "stderr": errors}
-        process = subprocess.Popen(bridge_command(uav, self.modes[uav_id], url, self.origin),
-                                   start_new_session=True, **quiet)
+        on_screen = self.output == "screen"
+        process = subprocess.Popen(bridge_command(uav, self.modes[uav_id], url, self.origin), start_new_session=True,
+                                   stdout=None if on_screen else subprocess.DEVNULL,
+                                   stderr=None if on_screen else errors)
         self.bridges[uav_id] = Bridge(uav_id, url, process, uav.stand_in, errors)
         self._wait_ready(self.bridges[uav_id])
 

@@ -39,7 +39,7 @@ from std_msgs.msg import ColorRGBA, String
 from std_srvs.srv import Trigger, TriggerResponse
 from uav_abstraction_layer.msg import State as UalState
 
-from magna_common.files import write_atomically
+from magna_common.files import write_text_atomically
 from magna_common.processes import end_parent_launch, end_process_group
 from magna_common.records import Hyperparameters
 from magna_common.ros_names import (
@@ -244,7 +244,7 @@ class GroundStationServices:
             request = {"name": f"uav_{config.id}", "kind": "uav", "pose": pose, "color": ColorRGBA(r, g, b, a),
                        "uav_id": config.id, "airframe": config.model, "flight_model": "light"}
             if self.mavlink is not None and self.mavlink.flies(config.id):
-                if not self._bring_up(config.id, spawn, request):
+                if not self._bring_up(self.mavlink, config.id, spawn, request):
                     return False
             else:
                 answer = spawn(**request)
@@ -258,18 +258,19 @@ class GroundStationServices:
         self._wait_for_the_bag()
         return True
 
-    def _bring_up(self, uav_id: int, spawn, request: dict) -> bool:
+    def _bring_up(self, mavlink: MavlinkUavs, uav_id: int, spawn, request: dict) -> bool:
         """Start the bridge of a hil or real UAV (its stand-in first, when it has one); False if it is not there."""
         def spawn_stand_in(local_port: int, remote_port: int) -> None:
+            assert mavlink.origin is not None  # bring_up ties the origin before it spawns a stand-in
             answer = spawn(interface="mavlink", mavlink_local_port=local_port, mavlink_remote_port=remote_port,
-                           mavlink_origin_geo=list(self.mavlink.origin), **request)
+                           mavlink_origin_geo=list(mavlink.origin), **request)
             if not answer.success:
                 raise MavlinkUavError(f"UAV {uav_id}: magna_sim refused its PX4-like stand-in: {answer.message}")
             self.spawned.append(uav_id)
 
         try:
             with self.sim_pause.time_needed():  # a stand-in's autopilot runs on simulated time
-                self.mavlink.bring_up(uav_id, spawn_stand_in)
+                mavlink.bring_up(uav_id, spawn_stand_in)
         except MavlinkUavError as error:
             self.setup_errors.append(str(error))
             rospy.logerr(f"spawn_agents: {error}")
@@ -297,9 +298,8 @@ class GroundStationServices:
                    f"_mission_file:={self.mission_file}", f"_control_rate:={self.control_rate}"]
         if self.data_dir:
             command.append(f"_data_dir:={self.data_dir}")
-        quiet = {} if self.manager_output == "screen" else {"stdout": subprocess.DEVNULL,
-                                                            "stderr": subprocess.DEVNULL}
-        self.managers[uav_id] = subprocess.Popen(command, start_new_session=True, **quiet)
+        output = self._child_output()
+        self.managers[uav_id] = subprocess.Popen(command, start_new_session=True, stdout=output, stderr=output)
 
     def start_utm(self, plan_file: str) -> None:
         """The UTM node for this mission, and the link that hears its plans."""
@@ -307,9 +307,12 @@ class GroundStationServices:
         clear_private_params("utm")
         command = ["rosrun", "magna_gs", "utm", "__name:=utm", f"_mission_file:={self.mission_file}",
                    f"_plan_file:={plan_file}"]
-        quiet = {} if self.manager_output == "screen" else {"stdout": subprocess.DEVNULL,
-                                                            "stderr": subprocess.DEVNULL}
-        self.utm_process = subprocess.Popen(command, start_new_session=True, **quiet)
+        output = self._child_output()
+        self.utm_process = subprocess.Popen(command, start_new_session=True, stdout=output, stderr=output)
+
+    def _child_output(self) -> int | None:
+        """Where a manager's or the UTM's stdout and stderr go: ours (None) on screen, else nowhere."""
+        return None if self.manager_output == "screen" else subprocess.DEVNULL
 
     def stop_utm(self) -> None:
         if self.utm_process is not None:
@@ -571,8 +574,8 @@ class GroundStation:
         if self.save_data and self.data_dir and services.spawned:
             steps.append(("saving the CSVs", lambda: services.save_csv(list(services.spawned))))
         if self.data_dir:
-            steps.append(("copying the mission", lambda: write_atomically(
-                self.data_dir / "mission.json", lambda f: f.write(self.mission_file.read_text()), overwrite=True)))
+            steps.append(("copying the mission", lambda: write_text_atomically(
+                self.data_dir / "mission.json", self.mission_file.read_text(), overwrite=True)))
         steps += [("stopping the UAV managers", services.stop_managers),
                   ("stopping the MAVLink bridges", services.stop_bridges), ("deleting the UAVs", services.delete_uavs),
                   ("deleting the world", services.delete_world), ("stopping the UTM", services.stop_utm),
