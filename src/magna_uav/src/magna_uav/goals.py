@@ -76,7 +76,7 @@ def mission_role(mission_json: str, config: UavConfig) -> OnBoardMissionRole:
                                              all(isinstance(v, int | float) and math.isfinite(v) for v in p)
                                              for p in path):
         raise ValueError("set_mission mission_json.path must be a list of [x, y, z] points in metres")
-    roles = []
+    roles: list[Role] = []
     if data.get("include_takeoff", False):
         roles.append(TakeOffRole(float(data.get("height", 2.0))))
     if path:

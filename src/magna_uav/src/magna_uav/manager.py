@@ -152,6 +152,7 @@ class UavManager:
             self.commander.set_velocity(command.velocity, command.yaw_rate)
             return np.asarray(command.velocity, dtype=float), command.algorithm, command.feasible
         if step.action == WAYPOINT:
+            assert step.goal is not None, "a waypoint step without its waypoint"  # every role gives one
             target = np.asarray(step.goal.position, dtype=float)
             self._hold = None  # a later hover holds where the UAV is then, not where it was before
             sent = self._sent_waypoint

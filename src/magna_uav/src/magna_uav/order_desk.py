@@ -44,13 +44,14 @@ class Order:
         while not self.done.wait(poll):
             if shutting_down():
                 self.finish(RoleResult(ABORTED, "the node is shutting down"))
+        assert self.result is not None  # finish() sets it before it sets done
         return self.result
 
 
 class OrderDesk:
     """Goals wait here for the machine; a new goal preempts the one flying and any still waiting."""
 
-    def __init__(self):
+    def __init__(self) -> None:
         self._cond = threading.Condition()
         self._waiting: collections.deque[Order] = collections.deque()
         self.current: Order | None = None

@@ -88,7 +88,8 @@ class Recorder:
         self._rows: list[list] = []
         self._frames: list[np.ndarray] = []
         self._frame_rows: list[int] = []
-        self._last_depth = None  # the view's depth array last stored: a frame is kept once, on the row it arrived
+        # the view's depth array last stored: a frame is kept once, on the row it arrived
+        self._last_depth: np.ndarray | None = None
         # Called with each new row's index and {column: value} (the node publishes it as a
         # NavigationStep, so a bag carries the same numbers as the CSV).
         self.on_row = on_row
@@ -162,9 +163,10 @@ class Recorder:
                 None if feasible is None else int(bool(feasible)), str(outcome)]
         assert len(row) == len(self.columns)
 
+        depth = own.depth if self.depth and own is not None else None
         frame = None
-        if self.depth and own is not None and own.depth is not None and own.depth is not self._last_depth:
-            frame = np.array(own.depth, dtype=np.float32, copy=True)
+        if depth is not None and depth is not self._last_depth:
+            frame = np.array(depth, dtype=np.float32, copy=True)
             if frame.ndim != 2:
                 raise ValueError(f"recorder of UAV {self.uav_id}: depth frame must be 2-D, got shape {frame.shape}")
             if self._frames and frame.shape != self._frames[0].shape:
@@ -173,7 +175,7 @@ class Recorder:
         self._rows.append(row)
         index = len(self._rows) - 1
         if frame is not None:
-            self._last_depth = own.depth
+            self._last_depth = depth
             self._frames.append(frame)
             self._frame_rows.append(index)
         if self.on_row is not None:

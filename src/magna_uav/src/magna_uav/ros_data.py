@@ -330,7 +330,7 @@ class RosWorldData(WorldUpdater):
 
         super().__init__(view, agent_ids, safety_radii)
         self._rospy = rospy
-        self._subscribers = []
+        self._subscribers: list[rospy.Subscriber] = []
 
         def sub(topic, msg_type, handler, *args):
             self._subscribers.append(rospy.Subscriber(topic, msg_type, self._guard(handler, topic), callback_args=args,

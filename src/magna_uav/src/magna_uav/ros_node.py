@@ -174,15 +174,17 @@ class UavManagerNode:
             self.manager.keep_hovering()
             with self.data.lock:
                 evaluation = self.evaluator.step(self.view, bool(self._critical_seen)) if self.view.has_own else None
-            event = evaluation.outcome if evaluation is not None and evaluation.outcome in ("collision",
-                                                                                              "low_battery") else ""
-            if event and event != idle_event:  # once per episode, not every control step
-                rospy.logwarn(f"UAV {self.uav_id} while idle: {evaluation.reason}")
-                self.reporter.report("idle", event)
+            event = ""
+            if evaluation is not None and evaluation.outcome in ("collision", "low_battery"):
+                event = evaluation.outcome
+                if event != idle_event:  # once per episode, not every control step
+                    rospy.logwarn(f"UAV {self.uav_id} while idle: {evaluation.reason}")
+                    self.reporter.report("idle", event)
             idle_event = event
 
     def _fly(self, ud, action: str) -> str:
         order = self.pending
+        assert order is not None  # idle hands every order over here before it enters this state
         if order.action != action:  # cannot happen: idle returns the order's action
             order.finish(RoleResult(ABORTED, f"internal: state {action} got a {order.action} goal"))
             return "done"
