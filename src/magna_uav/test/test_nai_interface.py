@@ -124,6 +124,10 @@ def test_a_request_is_applied_whole_or_not_at_all():
                                                                                "give a list"),
     ({"name": "orca3", "action": "set", "value": [1]}, "parameters.value is unknown"),
     (["orca3"], "give an object with name, action, params, values"),
+    ({"name": 3, "action": "set"}, "parameters.name is 3: give one of simple"),
+    ({"name": "orca3", "action": 1}, "parameters.action is 1: give 'set' or 'configure'"),
+    ({"name": "orca3", "action": "set", "params": (3,), "values": (1,)}, "parameters.params is (3,): give a list of "
+                                                                         "parameter names"),
 ])
 def test_malformed_state_parameters_are_refused(parameters, message):
     with pytest.raises(ValueError, match=message.replace("(", r"\(").replace(")", r"\)")):

@@ -62,7 +62,8 @@ ALIASES = {"orca3": "orca3d"}
 ACTIONS = ("set", "configure")
 ORCA_OBSTACLES = "N_obstacles_aware"
 
-_Checker = Callable[[object], object]
+ParamValue = float | str  # a number (an int for the whole ones) or neural_network's model path
+_Checker = Callable[[object], ParamValue]
 
 
 def _number(value) -> float:
@@ -140,6 +141,13 @@ def canonical_name(name: str) -> str:
     return name
 
 
+def _state_list(parameters: Mapping[str, object], key: str) -> Sequence[object]:
+    value = parameters.get(key, [])
+    if not isinstance(value, list | tuple):
+        raise ValueError(f"algorithm_control parameters.{key} is {value!r}: give a list")
+    return value
+
+
 class NavigationInterface:
     """Velocity commands for one UAV; `control` switches and tunes the algorithm."""
 
@@ -163,7 +171,7 @@ class NavigationInterface:
         self._load_model = model_loader
         self._orca = OrcaNavigator(solver)
         self._algorithm = "simple"
-        self._params: dict[str, dict[str, object]] = {
+        self._params: dict[str, dict[str, ParamValue]] = {
             "simple": {"brakingDistance": self.max_speed * DEFAULT_BRAKING_TIME},
             "orca3d": {name: getattr(Params(), field) for name, field in ALGORITHM_CONTROL_NAMES.items()},
             "neural_network": {"model": "", "neighborDist": DEFAULT_NEIGHBOR_DIST},
@@ -177,7 +185,7 @@ class NavigationInterface:
     def algorithm(self) -> str:
         return self._algorithm
 
-    def params(self, name: str | None = None) -> dict[str, object]:
+    def params(self, name: str | None = None) -> dict[str, ParamValue]:
         """A copy of the parameters of algorithm `name` (default: the current one)."""
         name = canonical_name(name) if name is not None else self._algorithm
         params = dict(self._params[name])
@@ -191,8 +199,13 @@ class NavigationInterface:
         return dict(self._models)
 
     def orca_params(self) -> Params:
-        p = self._params["orca3d"]
-        return Params.from_algorithm_control({k: v for k, v in p.items() if k != ORCA_OBSTACLES})
+        return Params.from_algorithm_control({k: self._number_param("orca3d", k) for k in self._params["orca3d"]
+                                              if k != ORCA_OBSTACLES})
+
+    def _number_param(self, name: str, param: str) -> float:
+        value = self._params[name][param]
+        assert not isinstance(value, str), f"{name} {param} is {value!r}"  # only neural_network's model is a path
+        return value
 
     def control(self, name: str, action: str, params: Sequence[str] = (), values: Sequence[object] = (),
                 text_value: str = "") -> str:
@@ -206,7 +219,7 @@ class NavigationInterface:
             raise ValueError(f"algorithm_control params has {len(params)} names but values has {len(values)}: "
                              "give one value per name")
         known = PARAMETERS[name]
-        updates: dict[str, object] = {}
+        updates: dict[str, ParamValue] = {}
         for param, value in zip(params, values, strict=True):
             if param not in known:
                 raise ValueError(f"algorithm_control parameter {param!r} is not a parameter of {name}; known: "
@@ -249,12 +262,17 @@ class NavigationInterface:
         if unknown:
             raise ValueError(f"algorithm_control parameters.{unknown[0]} is unknown: known keys are name, action, "
                              "params, values, text_value")
-        params, values = parameters.get("params", []), parameters.get("values", [])
-        for key, value in (("params", params), ("values", values)):
-            if not isinstance(value, list | tuple):
-                raise ValueError(f"algorithm_control parameters.{key} is {value!r}: give a list")
-        return self.control(parameters["name"], parameters["action"], params, values,
-                            str(parameters.get("text_value", "") or ""))
+        name, action = parameters["name"], parameters["action"]
+        if not isinstance(name, str):
+            raise ValueError(f"algorithm_control parameters.name is {name!r}: give one of simple, orca3d (or orca3), "
+                             "neural_network")
+        if not isinstance(action, str):
+            raise ValueError(f"algorithm_control parameters.action is {action!r}: give 'set' or 'configure'")
+        params, values = _state_list(parameters, "params"), _state_list(parameters, "values")
+        names = [param for param in params if isinstance(param, str)]
+        if len(names) != len(params):
+            raise ValueError(f"algorithm_control parameters.params is {params!r}: give a list of parameter names")
+        return self.control(name, action, names, values, str(parameters.get("text_value", "") or ""))
 
     def _model_request(self, updates: dict, text_value: str, action: str) -> NeuralModel | None:
         path = updates.get("model")
@@ -300,7 +318,7 @@ class NavigationInterface:
         return command
 
     def _preferred(self, view: WorldView, goal: Goal) -> np.ndarray:
-        velocity, _ = simple_velocity(view.own, goal, self.max_speed, self._params["simple"]["brakingDistance"],
+        velocity, _ = simple_velocity(view.own, goal, self.max_speed, self._number_param("simple", "brakingDistance"),
                                       "none")
         return velocity
 
@@ -317,6 +335,7 @@ class NavigationInterface:
         if algorithm == "orca3d":
             params = self.orca_params()
             n_obstacles = self.params("orca3d")[ORCA_OBSTACLES]
+            assert isinstance(n_obstacles, int)  # from _whole, or N_neighbors_aware's default, which is an int too
             result = self._orca.velocity(view, self._preferred(view, goal), params, n_obstacles,
                                          self.safety_radius, self.max_speed)
             velocity = result.velocity
@@ -327,7 +346,7 @@ class NavigationInterface:
             loaded = ", ".join(sorted(self._models)) or "none"
             raise LookupError(f"neural_network has no model for role {goal.role!r} (loaded: {loaded}); load one "
                               "with algorithm_control configure neural_network and the model path")
-        velocity, neighbors = model.velocity(view, goal, self._params["neural_network"]["neighborDist"])
+        velocity, neighbors = model.velocity(view, goal, self._number_param("neural_network", "neighborDist"))
         return Command(velocity, self._yaw_rate(view, goal, velocity), "neural_network", True, neighbors.ids,
                        neighbors.obstacle_names)
 
