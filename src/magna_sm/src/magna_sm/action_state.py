@@ -10,6 +10,7 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Callable, Iterable
+from typing import Any
 
 import rospy
 from actionlib_msgs.msg import GoalStatus
@@ -46,7 +47,7 @@ class SimpleActionState(State):
                  result_cb: Callable | None = None, result_cb_args=(), result_cb_kwargs=None,
                  input_keys: Iterable[str] = (), output_keys: Iterable[str] = (), outcomes: Iterable[str] = (),
                  exec_timeout=None, preempt_timeout=60.0, server_wait_timeout=60.0,
-                 client_factory: Callable = SimpleActionClient):
+                 client_factory: Callable[[str, Any], SimpleActionClient] = SimpleActionClient):
         goal_slots, result_slots = list(goal_slots), list(result_slots)
         inputs = [*input_keys, *goal_slots] + ([goal_key] if goal_key else [])
         outputs = [*output_keys, *result_slots] + ([result_key] if result_key else [])
@@ -68,7 +69,7 @@ class SimpleActionState(State):
         self._preempt_timeout = _duration(preempt_timeout)
         self._server_wait_timeout = _duration(server_wait_timeout)
         self._client_factory = client_factory
-        self._client = None
+        self._client: SimpleActionClient | None = None  # made on the first run, kept for the next ones
         self.last_status: int | None = None
         self.last_status_text = ""
 
@@ -104,13 +105,16 @@ class SimpleActionState(State):
                 time.sleep(_POLL)
         return "done"
 
-    def _connect(self) -> str:
+    def _get_client(self) -> SimpleActionClient:
         if self._client is None:
             self._client = self._client_factory(self.action_name, self._spec)
+        return self._client
+
+    def _connect(self, client: SimpleActionClient) -> str:
         connected = [False]
 
         def check() -> bool:
-            connected[0] = connected[0] or self._client.wait_for_server(rospy.Duration.from_sec(_POLL))
+            connected[0] = connected[0] or client.wait_for_server(rospy.Duration.from_sec(_POLL))
             return connected[0]
 
         return self._wait(check, self._server_wait_timeout, stop_on_preempt=True)
@@ -118,7 +122,8 @@ class SimpleActionState(State):
     # -- running ----------------------------------------------------------------
     def execute(self, ud) -> str:
         self.last_status, self.last_status_text = None, ""
-        waited = self._connect()
+        client = self._get_client()
+        waited = self._connect(client)
         if waited != "done":
             if waited == "preempted":
                 self.service_preempt()
@@ -127,23 +132,23 @@ class SimpleActionState(State):
             return "aborted"
 
         finished = threading.Event()
-        self._client.send_goal(self._build_goal(ud), done_cb=lambda status, result: finished.set())
+        client.send_goal(self._build_goal(ud), done_cb=lambda status, result: finished.set())
         try:
             waited = self._wait(finished.is_set, self._exec_timeout, stop_on_preempt=True)
             preempted = waited == "preempted"
             if waited != "done":
-                self._client.cancel_goal()
+                client.cancel_goal()
                 if self._wait(finished.is_set, self._preempt_timeout, stop_on_preempt=False) != "done":
                     rospy.logwarn(f"{self.path}: '{self.action_name}' did not confirm the cancel in time")
                     if preempted:
                         self.service_preempt()
                         return "preempted"
                     return "aborted"
-            status = self._client.get_state()
-            result = self._client.get_result()
-            self.last_status, self.last_status_text = status, self._client.get_goal_status_text()
+            status = client.get_state()
+            result = client.get_result()
+            self.last_status, self.last_status_text = status, client.get_goal_status_text()
         finally:
-            self._client.stop_tracking_goal()
+            client.stop_tracking_goal()
 
         if preempted:
             self.service_preempt()
@@ -170,8 +175,7 @@ class SimpleActionState(State):
         return "aborted"
 
 
-def outcome_from_result(ud, status: int, result, field: str = "outcome"):
+def outcome_from_result(ud, status: int, result, field: str = "outcome") -> str | None:
     """A result_cb for MAGNA actions: the outcome string the UAV manager put in the result."""
-    if result is not None and getattr(result, field, ""):
-        return getattr(result, field)
-    return None
+    outcome = "" if result is None else getattr(result, field, "")
+    return outcome or None

@@ -8,6 +8,7 @@ from __future__ import annotations
 import threading
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
+from typing import TypeVar
 
 from magna_sm.exceptions import InvalidOutcomeError, StateExecutionError, StateMachineError, ValidationError
 from magna_sm.state import State
@@ -16,6 +17,8 @@ from magna_sm.userdata import Remapper, UserData
 PREEMPTED = "preempted"
 
 _opened = threading.local()  # the stack of containers opened with `with`, per thread
+
+_C = TypeVar("_C", bound="Container")
 
 
 @dataclass(frozen=True)
@@ -74,7 +77,7 @@ class Container(State):
         _opened.stack.pop()
 
     @staticmethod
-    def _current(kind: type) -> Container:
+    def _current(kind: type[_C]) -> _C:
         stack = getattr(_opened, "stack", None)
         if not stack:
             raise StateMachineError(f"{kind.__name__}.add() needs an open container: use `with container:`")

@@ -11,10 +11,14 @@ from __future__ import annotations
 import threading
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from magna_common import ros_names as names
 from magna_sm.container import Container, ContainerEvent, ContainerStructure
 from magna_sm.draw import draw_structures
+
+if TYPE_CHECKING:
+    from magna_msgs.msg import SMStatus, SMStructure
 
 
 def structure_to_msg(structure: ContainerStructure, stamp=None):
@@ -123,18 +127,18 @@ class MachineView:
 
     def __init__(self):
         self._lock = threading.Lock()
-        self._structures: dict[str, object] = {}
-        self._statuses: dict[str, object] = {}
+        self._structures: dict[str, SMStructure] = {}
+        self._statuses: dict[str, SMStatus] = {}
         self.version = 0  # bumps on every change that alters the picture
 
-    def on_structure(self, msg) -> None:
+    def on_structure(self, msg: SMStructure) -> None:
         with self._lock:
             old = self._structures.get(msg.path)
             if old is None or self._key(old) != self._key(msg):
                 self.version += 1
             self._structures[msg.path] = msg
 
-    def on_status(self, msg) -> None:
+    def on_status(self, msg: SMStatus) -> None:
         with self._lock:
             old = self._statuses.get(msg.path)
             if old is None or list(old.active_states) != list(msg.active_states):

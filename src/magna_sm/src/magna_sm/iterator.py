@@ -70,6 +70,7 @@ class Iterator(Container):
     def _run(self) -> str:
         items = self._items() if callable(self._items) else self._items
         label = self._contained
+        assert label is not None  # check() refuses an Iterator without states, and set_state() is how one is added
         state = self._children[label]
         self._notify("start")
         for item in items:

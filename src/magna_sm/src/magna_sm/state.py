@@ -27,8 +27,8 @@ class State:
         self._input_keys = frozenset([*input_keys, *io_keys])
         self._output_keys = frozenset([*output_keys, *io_keys])
         self._preempt = threading.Event()
-        self._parent = None   # the container this state was added to
-        self._label = None    # its label there
+        self._parent: State | None = None  # the container this state was added to (a State: no import circle)
+        self._label: str | None = None     # its label there
 
     # -- what the state declares ------------------------------------------------
     def get_registered_outcomes(self) -> tuple[str, ...]:

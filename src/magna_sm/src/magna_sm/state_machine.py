@@ -70,12 +70,12 @@ class StateMachine(Container):
                     problems.append(f"{self.path}/{label}: outcome '{outcome}' goes to '{target}', "
                                     "which is neither a state nor an outcome of this machine")
             for outcome in state.get_registered_outcomes():
-                target = self._target(label, outcome)
-                if target is None:
+                mapped = self._target(label, outcome)
+                if mapped is None:
                     problems.append(f"{self.path}/{label}: outcome '{outcome}' is not mapped "
                                     f"(map it to a state or to one of {list(self._outcomes)})")
-                elif target in self._outcomes:
-                    produced.add(target)
+                elif mapped in self._outcomes:
+                    produced.add(mapped)
         problems.extend(f"{self.path}/{label}: unreachable from the initial state '{self._initial}'"
                         for label in self._children if label not in self._reachable())
         problems.extend(f"{self.path}: no state leads to the container outcome '{outcome}'"
@@ -99,13 +99,14 @@ class StateMachine(Container):
         return [self._initial] if self._initial else []
 
     def _structure_transitions(self) -> list[tuple[str, str, str]]:
-        return [(label, outcome, self._target(label, outcome))
+        return [(label, outcome, target)
                 for label, state in self._children.items()
-                for outcome in state.get_registered_outcomes() if self._target(label, outcome) is not None]
+                for outcome in state.get_registered_outcomes() if (target := self._target(label, outcome)) is not None]
 
     # -- running ----------------------------------------------------------------
     def _run(self) -> str:
         label = self._initial
+        assert label is not None  # check() refuses a machine whose initial state is not one of its states
         self._last_outcome = ""
         starting = True
         while True:
@@ -121,6 +122,8 @@ class StateMachine(Container):
                 starting = False
             outcome = self._execute_child(label, state)
             target = self._target(label, outcome)
+            # check() refuses unmapped outcomes and _execute_child() undeclared ones
+            assert target is not None
             with self._lock:
                 self._active = []
             self._last_outcome = outcome

@@ -136,7 +136,7 @@ class GoalTable:
         with self.lock:
             if self._started:
                 return
-            self._read_parameters()
+            status_frequency = self._read_parameters()
             queue = rospy.get_param("actionlib_server_pub_queue_size", 50)
             queue = queue if queue > 0 else 50
             self._pubs = {
@@ -154,9 +154,9 @@ class GoalTable:
             ]
             self._started = True
             self._stop.clear()
-            if self._status_frequency > 0:
-                self._heartbeat = threading.Thread(target=self._heartbeat_loop, daemon=True,
-                                                   name=f"action status {self.ns}")
+            if status_frequency > 0:
+                self._heartbeat = threading.Thread(target=self._heartbeat_loop, args=(1.0 / status_frequency,),
+                                                   daemon=True, name=f"action status {self.ns}")
                 self._heartbeat.start()
                 _joined_at_ros_shutdown(self._heartbeat)
             _on_ros_shutdown(self, "_halt_heartbeat")
@@ -183,7 +183,8 @@ class GoalTable:
     def _halt_heartbeat(self) -> None:
         self._stop.set()
 
-    def _read_parameters(self) -> None:
+    def _read_parameters(self) -> float:
+        """Fill in the status frequency and list timeout not given to the constructor; return the frequency."""
         if self._status_frequency is None:
             own = action_topic(self.ns, "status_frequency")
             if rospy.has_param(own):
@@ -194,9 +195,9 @@ class GoalTable:
         if self._status_list_timeout is None:
             self._status_list_timeout = float(rospy.get_param(action_topic(self.ns, "status_list_timeout"),
                                                               DEFAULT_STATUS_LIST_TIMEOUT))
+        return self._status_frequency
 
-    def _heartbeat_loop(self) -> None:
-        period = 1.0 / self._status_frequency
+    def _heartbeat_loop(self, period: float) -> None:
         while not self._stop.wait(period):
             if rospy.is_shutdown():
                 return
