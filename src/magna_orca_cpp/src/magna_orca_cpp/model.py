@@ -53,8 +53,8 @@ class Agent:
 
     @classmethod
     def from_row(cls, row: Sequence[float]) -> Agent:
-        row = np.asarray(row, dtype=float)
-        return cls(row[0:3], row[3:6], row[6:9], row[9], row[10], bool(row[11]))
+        values = np.asarray(row, dtype=float)
+        return cls(values[0:3], values[3:6], values[6:9], values[9], values[10], bool(values[11]))
 
 
 @dataclass

@@ -159,9 +159,10 @@ def solve_on_plane(planes: Sequence[Plane], index: int, radius: float, target: n
         direction = crossing / math.sqrt(crossing_sq)
         across = np.cross(direction, normal)
         step = float(other_normal @ (other_point - point)) / float(other_normal @ across)
-        result = solve_on_line(planes, j, point + step * across, direction, radius, target, is_direction)
-        if result is None:
+        on_line = solve_on_line(planes, j, point + step * across, direction, radius, target, is_direction)
+        if on_line is None:
             return None
+        result = on_line
     return result
 
 
