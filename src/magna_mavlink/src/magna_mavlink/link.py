@@ -21,6 +21,8 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from .pymavlink_types import MavConnection, MavEncoder, MavMessage
+
 os.environ.setdefault("MAVLINK20", "1")  # before pymavlink is imported: speak MAVLink 2, as PX4 does
 from pymavlink import mavutil  # noqa: E402
 
@@ -77,7 +79,7 @@ def parse_url(url: str) -> Endpoint:
     raise LinkError(f"{url}: not a connection URL; accepted: {URL_FORMS}")
 
 
-def open_connection(url: str, source_system: int, source_component: int):
+def open_connection(url: str, source_system: int, source_component: int) -> MavConnection:
     """The pymavlink connection of a URL (a socket bound or a serial port opened), or LinkError naming it."""
     endpoint = parse_url(url)
     if endpoint.device.startswith("/") and not os.path.exists(endpoint.device):
@@ -96,9 +98,10 @@ class MavlinkLink:
     `connect` opens the connection (a pymavlink mavfile); tests give one of their own.
     """
 
-    def __init__(self, url: str, target_system: int, on_message: Callable[[object], None] | None = None,
+    def __init__(self, url: str, target_system: int, on_message: Callable[[MavMessage], None] | None = None,
                  source_system: int | None = None, source_component: int = MAV_COMP_ID_ONBOARD_COMPUTER,
-                 connect=open_connection, heartbeat_period: float = HEARTBEAT_PERIOD):
+                 connect: Callable[[str, int, int], MavConnection] = open_connection,
+                 heartbeat_period: float = HEARTBEAT_PERIOD):
         self.url = url
         self.target_system = target_system
         # A companion computer is a component of the vehicle it flies: the same system id.
@@ -107,13 +110,13 @@ class MavlinkLink:
         self.on_message = on_message
         self.heartbeat_period = heartbeat_period
         self._connect = connect
-        self._connection = None
+        self._connection: MavConnection | None = None
         self._send_lock = threading.Lock()
-        self._acks: dict[int, list] = {}  # command -> acks received since it was sent
+        self._acks: dict[int, list[MavMessage]] = {}  # command -> acks received since it was sent
         self._ack_changed = threading.Condition()
         self._heard = threading.Event()  # the autopilot's first HEARTBEAT
-        self.last_heartbeat = None  # the autopilot's latest HEARTBEAT message
-        self.last_heartbeat_wall = None  # time.monotonic() when it came
+        self.last_heartbeat: MavMessage | None = None  # the autopilot's latest HEARTBEAT message
+        self.last_heartbeat_wall: float | None = None  # time.monotonic() when it came
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
         self._boot = time.monotonic()
@@ -127,14 +130,16 @@ class MavlinkLink:
             self._threads.append(thread)
         return self
 
-    def wait_for_vehicle(self, timeout: float):
+    def wait_for_vehicle(self, timeout: float) -> MavMessage:
         """The autopilot's first HEARTBEAT, or LinkError naming the URL after `timeout` s of wall time."""
         if not self._heard.wait(timeout):
             hint = ("is the vehicle on, and does it send to this port?" if self.url.startswith(("udpin", "udp:"))
                     else "is the vehicle on, and is this its address?")
             raise LinkError(f"no heartbeat from system {self.target_system} at {self.url} within {timeout:g} s: "
                             f"{hint} (magna doctor --mavlink {self.url} checks a link)")
-        return self.last_heartbeat
+        heartbeat = self.last_heartbeat
+        assert heartbeat is not None  # the receive thread keeps it before it sets _heard
+        return heartbeat
 
     def close(self) -> None:
         self._stop.set()
@@ -157,8 +162,11 @@ class MavlinkLink:
     # --- receiving ---------------------------------------------------------------------------------------------
     def _receive_loop(self) -> None:
         while not self._stop.is_set():
+            connection = self._connection
+            if connection is None:  # closed: close() sets _stop before it lets the connection go
+                return
             try:
-                msg = self._connection.recv_match(blocking=True, timeout=0.1)
+                msg = connection.recv_match(blocking=True, timeout=0.1)
             except (OSError, ValueError, AttributeError):  # the socket closed under us at shutdown
                 if self._stop.is_set():
                     return
@@ -185,7 +193,7 @@ class MavlinkLink:
     def time_boot_ms(self) -> int:
         return int((time.monotonic() - self._boot) * 1000) & 0xFFFFFFFF
 
-    def send(self, build: Callable[[object], None]) -> None:
+    def send(self, build: Callable[[MavEncoder], None]) -> None:
         """Run `build(mav)` (e.g. lambda mav: mav.heartbeat_send(...)) with the link to ourselves."""
         connection = self._connection
         if connection is None:
@@ -213,8 +221,7 @@ class MavlinkLink:
         with self._ack_changed:
             self._acks[command] = []
         for confirmation in range(attempts):
-            self.send(lambda mav, c=confirmation: mav.command_long_send(
-                self.target_system, target_component, command, c, *values))
+            self._send_command_long(target_component, command, confirmation, values)
             deadline = time.monotonic() + timeout
             with self._ack_changed:
                 while True:
@@ -231,6 +238,11 @@ class MavlinkLink:
                     self._ack_changed.wait(left)
         raise CommandFailed(f"{label}: no COMMAND_ACK from system {self.target_system} at {self.url} after "
                             f"{attempts} tries of {timeout:g} s")
+
+    def _send_command_long(self, target_component: int, command: int, confirmation: int,
+                           values: list[float]) -> None:
+        self.send(lambda mav: mav.command_long_send(self.target_system, target_component, command, confirmation,
+                                                    *values))
 
     def command_accepted(self, command: int, *params: float, name: str | None = None, **kwargs) -> None:
         """Like command(), but anything other than ACCEPTED raises CommandFailed with the result's name."""

@@ -18,6 +18,7 @@ import time
 from dataclasses import dataclass, field
 
 from magna_mavlink.autopilot import UnknownAutopilot, autopilot_of, decode_mode
+from magna_mavlink.pymavlink_types import MavConnection, MavMessage
 
 GCS_SYSTEM, GCS_COMPONENT = 255, 190  # MAV_COMP_ID_MISSIONPLANNER: how a ground station introduces itself
 MAV_TYPE_GCS, MAV_AUTOPILOT_INVALID = 6, 8
@@ -102,18 +103,18 @@ class Observations:
     """What the vehicle said during the check (fed message by message, times in s since the start)."""
 
     vehicle: tuple[int, int] | None = None  # (system, component) of the first autopilot heartbeat
-    heartbeat: object | None = None  # its latest HEARTBEAT
+    heartbeat: MavMessage | None = None  # its latest HEARTBEAT
     first_heartbeat_at: float = 0.0
     heartbeats: int = 0
-    not_autopilots: set = field(default_factory=set)  # (system, component) of GCSs and companions heard
-    other_systems: set = field(default_factory=set)  # other vehicles' system ids
-    local_position: object | None = None
-    global_position: object | None = None
-    sys_status: object | None = None
-    home: object | None = None
+    not_autopilots: set[tuple[int, int]] = field(default_factory=set)  # (system, component) of GCSs, companions
+    other_systems: set[int] = field(default_factory=set)  # other vehicles' system ids
+    local_position: MavMessage | None = None
+    global_position: MavMessage | None = None
+    sys_status: MavMessage | None = None
+    home: MavMessage | None = None
     refused: int | None = None  # a MAV_RESULT other than ACCEPTED to one of our message requests
 
-    def add(self, msg, now: float) -> None:
+    def add(self, msg: MavMessage, now: float) -> None:
         kind = msg.get_type()
         source = (msg.get_srcSystem(), msg.get_srcComponent())
         if kind == "HEARTBEAT":
@@ -160,6 +161,7 @@ def evaluate(url: LinkUrl, seen: Observations, timeout: float, waited: float) ->
         return [LinkCheck("heartbeat", False, f"no HEARTBEAT from a vehicle at {url.text} within {timeout:g} s"
                           + heard, url.no_heartbeat_fix())]
     hb = seen.heartbeat
+    assert seen.vehicle is not None  # a heartbeat is kept only from the vehicle it names
     system, component = seen.vehicle
     rate = ""
     if seen.heartbeats > 1 and waited > seen.first_heartbeat_at:
@@ -240,7 +242,7 @@ def _mavutil():
     return mavutil
 
 
-def connect(url: LinkUrl):
+def connect(url: LinkUrl) -> MavConnection:
     """pymavlink's connection for the URL; LinkUnavailable (the URL, the reason, the fix) when it cannot be
     opened."""
     mavutil = _mavutil()
@@ -309,7 +311,8 @@ def check_link(text: str, timeout: float = 5.0) -> list[LinkCheck]:
     return evaluate(url, seen, timeout, time.monotonic() - start)
 
 
-def _ask(link, seen: Observations) -> None:
+def _ask(link: MavConnection, seen: Observations) -> None:
+    assert seen.vehicle is not None  # check_link asks once a vehicle is heard
     system, component = seen.vehicle
     wanted = []
     if seen.home is None:

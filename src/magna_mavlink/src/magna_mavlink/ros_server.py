@@ -272,7 +272,7 @@ def main(argv=None) -> int:
     link = MavlinkLink(options.url, options.system_id, on_message=lambda msg: vehicle.update(msg, rospy.get_time()))
     try:
         link.open()
-        link.wait_for_vehicle(options.connect_timeout)
+        heard = link.wait_for_vehicle(options.connect_timeout)
     except LinkError as err:
         print(f"ual_mavlink: UAV {options.uav_id}: {err}", file=sys.stderr)
         link.close()
@@ -283,7 +283,6 @@ def main(argv=None) -> int:
               f"--autopilot ardupilot flies it as one of those)", file=sys.stderr)
         link.close()
         return 2
-    heard = link.last_heartbeat
     rospy.loginfo(f"ual_mavlink: UAV {options.uav_id} is {autopilot} system {options.system_id} at {options.url} "
                   f"(HEARTBEAT autopilot {heard.autopilot}); {describe_arming(options, autopilot)}")
     backend = UalBackend(vehicle, Commander(link, autopilot), options.settings, options.url, clock=rospy.get_time,

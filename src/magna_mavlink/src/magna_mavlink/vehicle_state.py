@@ -26,6 +26,7 @@ from magna_common import geo
 
 from . import autopilot as ap
 from . import frames
+from .pymavlink_types import MavMessage
 from .ual_state import LANDED_UNDEFINED
 
 POSITION_TIMEOUT = 1.0  # s without LOCAL_POSITION_NED before the position counts as lost
@@ -102,7 +103,7 @@ class VehicleState:
         with self._lock:
             return self._t
 
-    def update(self, msg, now: float) -> None:
+    def update(self, msg: MavMessage, now: float) -> None:
         handler = getattr(self, "_on_" + msg.get_type(), None)
         with self._lock:
             changes = (handler(msg, now) if handler is not None else None) or {}
@@ -171,11 +172,11 @@ class VehicleState:
                 and abs(self._local_boot_ms - self._global_boot_ms) <= PAIR_WINDOW_MS
                 and float(np.linalg.norm(velocity)) <= STILL_SPEED)
 
-    def _place_origin(self, local_origin_geo) -> dict:
+    def _place_origin(self, local_origin_geo: tuple[float, float, float]) -> dict[str, object]:
         """The geographic position of the autopilot's local origin, the first time it is known (then fixed)."""
         if self._t.local_origin_geo is not None:
             return {}
-        changes = {"local_origin_geo": tuple(float(v) for v in local_origin_geo)}
+        changes: dict[str, object] = {"local_origin_geo": tuple(float(v) for v in local_origin_geo)}
         if self.origin_geo is not None:
             changes["map_offset"] = geo.geodetic_to_enu(*local_origin_geo, self.origin_geo)
         return changes
