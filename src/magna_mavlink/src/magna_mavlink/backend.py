@@ -33,6 +33,7 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -81,6 +82,16 @@ class Settings:
     arm_retry: float = 2.0  # s between arming attempts (arming auto)
 
 
+class Log(Protocol):
+    """Where the backend tells what happens: a logging.Logger, or the node's rospy logger (ros_server.RosLog)."""
+
+    def info(self, message: str, /) -> None: ...
+
+    def warning(self, message: str, /) -> None: ...
+
+    def error(self, message: str, /) -> None: ...
+
+
 class Operation:
     """One take_off, land or go_to_waypoint, from its start to success or failure."""
 
@@ -102,7 +113,7 @@ class Operation:
 
 class UalBackend:
     def __init__(self, vehicle: VehicleState, commander, settings: Settings, url: str,
-                 clock: Callable[[], float] = time.monotonic, log: logging.Logger | None = None):
+                 clock: Callable[[], float] = time.monotonic, log: Log | None = None):
         if settings.arming not in (AUTO, PILOT):
             raise ValueError(f"arming: {settings.arming!r}; use {AUTO} (simulation, HIL) or {PILOT} (real UAVs)")
         self.vehicle = vehicle
@@ -110,7 +121,7 @@ class UalBackend:
         self.settings = settings
         self.url = url
         self.clock = clock
-        self.log = log or logging.getLogger("ual_mavlink")
+        self.log: Log = log or logging.getLogger("ual_mavlink")
         self.stream = SetPointStream(settings.velocity_timeout)
         self.state = UNINITIALIZED
         self.link_problem = f"no heartbeat from {url} yet"
@@ -164,11 +175,13 @@ class UalBackend:
         # packet in five, two HEARTBEATs in a row go missing every minute or so, the 30 Hz telemetry never.
         if t.heartbeat_time is None:
             problem = f"no heartbeat from {self.url} yet"
-        elif now - t.heard_time > self.settings.heartbeat_timeout:
-            problem = (f"no heartbeat from {self.url} for {self.settings.heartbeat_timeout:.1f} s "
-                       f"(nor any other message)")
         else:
-            problem = ""
+            assert t.heard_time is not None  # every message sets it, the HEARTBEAT too
+            if now - t.heard_time > self.settings.heartbeat_timeout:
+                problem = (f"no heartbeat from {self.url} for {self.settings.heartbeat_timeout:.1f} s "
+                           f"(nor any other message)")
+            else:
+                problem = ""
         if problem != self.link_problem:
             if problem:
                 self.log.warning(f"UAV {self.settings.uav_id}: {problem}")
@@ -229,7 +242,8 @@ class UalBackend:
             if op.phase in ("pilot", "climb", "autopilot climb", "arrive") and not t.armed:
                 return self._fail(op, f"take_off interrupted: {uav} was disarmed")
             if op.phase in ("climb", "arrive") and not t.follows_set_points:
-                return self._fail(op, f"take_off interrupted: {uav} left {ap.SET_POINT_MODE[t.autopilot]} for "
+                assert t.mode is not None  # the climb began in the set-point mode, and a mode heard stays known
+                return self._fail(op, f"take_off interrupted: {uav} left {ap.SET_POINT_MODE[_autopilot(t)]} for "
                                       f"{t.mode.name} (a pilot took over?)")
             if op.phase == "climb":
                 climbed = min(op.height, self.settings.take_off_speed * max(0.0, now - op.climb_started))
@@ -245,9 +259,9 @@ class UalBackend:
                 if t.landed_state == ON_GROUND or not t.armed:
                     op.done = True
                     self.log.info(f"{uav}: landed")
-                elif t.mode is not None and t.mode.name != LAND_MODE[t.autopilot]:
-                    return self._fail(op, f"land interrupted: {uav} left {LAND_MODE[t.autopilot]} for {t.mode.name} "
-                                          f"(a pilot took over?)")
+                elif t.mode is not None and t.mode.name != LAND_MODE[_autopilot(t)]:
+                    return self._fail(op, f"land interrupted: {uav} left {LAND_MODE[_autopilot(t)]} for "
+                                          f"{t.mode.name} (a pilot took over?)")
         elif op.name == GO_TO and self.state != FLYING_AUTO:
             return self._fail(op, f"{GO_TO} interrupted: {uav} is {NAMES[self.state]}")
         if op.phase == "arrive" and op.arrival is not None:
@@ -286,7 +300,7 @@ class UalBackend:
 
     def _take_off(self, op: Operation) -> None:
         uav = f"UAV {self.settings.uav_id}"
-        autopilot = self._telemetry.autopilot
+        autopilot = _autopilot(self._telemetry)
         mode = ap.SET_POINT_MODE[autopilot]
         if self.settings.arming == AUTO:
             if not self._telemetry.armed:
@@ -322,7 +336,7 @@ class UalBackend:
         self._run(op, self._land, blocking)
 
     def _land(self, op: Operation) -> None:
-        self._select_mode(LAND_MODE[self._telemetry.autopilot], op)
+        self._select_mode(LAND_MODE[_autopilot(self._telemetry)], op)
         with self._lock:
             if not op.finished:
                 op.phase = "descend"
@@ -378,10 +392,11 @@ class UalBackend:
                 raise CommandRefused(f"set_home refused: UAV {self.settings.uav_id} is UNINITIALIZED "
                                      f"({self.link_problem or 'no valid position yet'})")
             t = self._telemetry
-        keep_altitude = not set_z and t.global_position is not None and t.home_geo is not None
+        geo_home: tuple[float, float, float] | None = None  # None: where the vehicle is, its altitude too
+        if not set_z and t.global_position is not None and t.home_geo is not None:
+            geo_home = (t.global_position[0], t.global_position[1], t.home_geo[2])  # keeps the home's altitude
         try:
-            self.commander.set_home((t.global_position[0], t.global_position[1], t.home_geo[2]) if keep_altitude
-                                    else None)
+            self.commander.set_home(geo_home)
         except CommandFailed as err:
             raise CommandRefused(f"set_home: {err}") from None
         with self._lock:
@@ -397,7 +412,7 @@ class UalBackend:
             t = self._telemetry
             self.stream.hold(t.position, t.yaw)
             self._in_control = True
-        mode = ap.SET_POINT_MODE[t.autopilot]
+        mode = ap.SET_POINT_MODE[_autopilot(t)]
         try:
             self._select_mode(mode)
         except CommandFailed as err:
@@ -465,7 +480,7 @@ class UalBackend:
                 self._ticked.wait(0.1)
 
     def _arm(self) -> None:
-        self._select_mode(ap.SET_POINT_MODE[self._telemetry.autopilot])
+        self._select_mode(ap.SET_POINT_MODE[_autopilot(self._telemetry)])
         self.commander.arm()
         self._await(lambda t: t.armed, f"UAV {self.settings.uav_id} to report armed", self.settings.mode_timeout)
 
@@ -502,7 +517,7 @@ class UalBackend:
         raise CommandRefused(f"header.frame_id '{frame_id}' is not known here; use 'map' or "
                              f"'uav_{self.settings.uav_id}_home'")
 
-    def _geo_to_map(self, t: Telemetry, fix) -> np.ndarray | None:
+    def _geo_to_map(self, t: Telemetry, fix: tuple[float, float, float]) -> np.ndarray | None:
         if self.vehicle.origin_geo is not None:
             return geo.geodetic_to_enu(*fix, self.vehicle.origin_geo)
         reference = t.geo_reference()
@@ -520,3 +535,10 @@ class UalBackend:
         self._closed = True
         with self._ticked:
             self._ticked.notify_all()
+
+
+def _autopilot(t: Telemetry) -> str:
+    """The autopilot flown. Known before any command: ual_mavlink builds the backend once the vehicle's HEARTBEAT
+    named a PX4 or ArduPilot (or --autopilot did), and an autopilot heard stays known."""
+    assert t.autopilot is not None
+    return t.autopilot
