@@ -142,15 +142,15 @@ def check_against_mission(fleet: Fleet, modes: dict[int, str]) -> list[str]:
             problems.append(f"{fleet.source}: uavs: UAV {uav_id} is {mode} in the mission but has no entry; add "
                             f"'{uav_id}: {{url: ...}}' (or 'stand_in: true' for a simulated HIL vehicle)")
     for uav_id, uav in sorted(fleet.uavs.items()):
-        mode = modes.get(uav_id)
+        mission_mode = modes.get(uav_id)
         where = f"{fleet.source}: uavs.{uav_id}"
-        if mode is None:
+        if mission_mode is None:
             problems.append(f"{where}: the mission has no UAV {uav_id} (its IDs: {sorted(modes)}); remove the entry "
                             f"or fix the ID")
-        elif mode not in MAVLINK_MODES:
-            problems.append(f"{where}: UAV {uav_id} is {mode} in the mission, so magna_sim flies it; remove the "
-                            f"entry or make it hil or real in the mission's Agents_Config")
-        elif uav.stand_in and mode == "real":
+        elif mission_mode not in MAVLINK_MODES:
+            problems.append(f"{where}: UAV {uav_id} is {mission_mode} in the mission, so magna_sim flies it; remove "
+                            f"the entry or make it hil or real in the mission's Agents_Config")
+        elif uav.stand_in and mission_mode == "real":
             problems.append(f"{where}.stand_in: UAV {uav_id} is real in the mission: a real UAV has no simulated "
                             f"stand-in; remove stand_in or make the UAV hil")
     return problems

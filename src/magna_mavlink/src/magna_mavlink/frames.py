@@ -11,9 +11,9 @@ shares one matrix. Angles come back wrapped to (-pi, pi].
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.spatial.transform import Rotation
 
 # World: a vector in ENU as NED (and back: the matrix is its own inverse).
@@ -28,22 +28,22 @@ def wrap_angle(angle: float) -> float:
     return math.pi if wrapped == -math.pi else wrapped
 
 
-def enu_to_ned(vector: Sequence[float]) -> np.ndarray:
+def enu_to_ned(vector: ArrayLike) -> np.ndarray:
     """A position or velocity in ENU as NED."""
     return ENU_TO_NED @ np.asarray(vector, dtype=float)
 
 
-def ned_to_enu(vector: Sequence[float]) -> np.ndarray:
+def ned_to_enu(vector: ArrayLike) -> np.ndarray:
     """A position or velocity in NED as ENU."""
     return ENU_TO_NED @ np.asarray(vector, dtype=float)
 
 
-def flu_to_frd(vector: Sequence[float]) -> np.ndarray:
+def flu_to_frd(vector: ArrayLike) -> np.ndarray:
     """A body-frame vector (velocity, angular rate) in FLU as FRD."""
     return FLU_TO_FRD @ np.asarray(vector, dtype=float)
 
 
-def frd_to_flu(vector: Sequence[float]) -> np.ndarray:
+def frd_to_flu(vector: ArrayLike) -> np.ndarray:
     """A body-frame vector in FRD as FLU."""
     return FLU_TO_FRD @ np.asarray(vector, dtype=float)
 
@@ -58,14 +58,14 @@ def yaw_ned_to_enu(yaw: float) -> float:
     return wrap_angle(math.pi / 2.0 - yaw)
 
 
-def attitude_enu_flu_to_ned_frd(quaternion_xyzw: Sequence[float]) -> np.ndarray:
+def attitude_enu_flu_to_ned_frd(quaternion_xyzw: ArrayLike) -> np.ndarray:
     """The body attitude as ROS gives it (FLU body in the ENU world, x, y, z, w) as MAVLink wants it
     (FRD body in the NED world, x, y, z, w). MAVLink messages order it w, x, y, z: reorder at the edge."""
     matrix = ENU_TO_NED @ Rotation.from_quat(quaternion_xyzw).as_matrix() @ FLU_TO_FRD
     return Rotation.from_matrix(matrix).as_quat()
 
 
-def attitude_ned_frd_to_enu_flu(quaternion_xyzw: Sequence[float]) -> np.ndarray:
+def attitude_ned_frd_to_enu_flu(quaternion_xyzw: ArrayLike) -> np.ndarray:
     """The inverse of attitude_enu_flu_to_ned_frd."""
     matrix = ENU_TO_NED @ Rotation.from_quat(quaternion_xyzw).as_matrix() @ FLU_TO_FRD
     return Rotation.from_matrix(matrix).as_quat()

@@ -99,7 +99,7 @@ class UdpProxy:
             raise ValueError(f"delay {delay}: give the one-way delay in seconds, >= 0 (0.05 for 50 ms)")
         if (cut_at is None) != (cut_for is None):
             raise ValueError("a scheduled cut needs both cut_at and cut_for (seconds after the start, seconds long)")
-        if cut_at is not None and not (cut_at >= 0 and cut_for >= 0):  # a cut of 0 s cuts nothing
+        if cut_at is not None and cut_for is not None and not (cut_at >= 0 and cut_for >= 0):  # 0 s cuts nothing
             raise ValueError(f"cut_at {cut_at}, cut_for {cut_for}: give cut_at >= 0 and cut_for >= 0 seconds")
         self.loss, self.delay = float(loss), float(delay)
         self.cut_at, self.cut_for = cut_at, cut_for
@@ -176,7 +176,7 @@ class UdpProxy:
     def start(self) -> UdpProxy:
         if self._thread is not None:
             raise RuntimeError("the proxy is already started")
-        if self.cut_at is not None:
+        if self.cut_at is not None and self.cut_for is not None:  # __init__ takes both or neither
             begin = time.monotonic() + self.cut_at
             self._scheduled_cut = (begin, begin + self.cut_for)
         self._thread = threading.Thread(target=self._serve, name="udp_proxy", daemon=True)
@@ -226,7 +226,9 @@ class UdpProxy:
                 for key, _ in selector.select(timeout):
                     if key.data is None:
                         continue  # woken up by stop()
-                    self._drain(key.fileobj, key.data)
+                    sock = key.fileobj
+                    assert isinstance(sock, socket.socket)  # only sockets are registered
+                    self._drain(sock, key.data)
                 self._send_due(time.monotonic())
         finally:
             selector.close()
