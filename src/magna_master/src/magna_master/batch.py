@@ -44,6 +44,8 @@ import uuid
 import xmlrpc.client
 from collections.abc import Callable
 from pathlib import Path
+from types import FrameType
+from typing import Any
 
 from magna_common.cli_vocabulary import parse_rtf
 from magna_common.processes import TOKEN_ENV, end_process_group, kill_tagged
@@ -93,13 +95,17 @@ def preflight(config: BatchConfig) -> None:
                              "yet; update the workspace (make setup)")
 
 
+# what signal.signal takes and gives back: a function, SIG_DFL or SIG_IGN (ints), None (a handler not set by Python)
+_SignalHandler = Callable[[int, FrameType | None], Any] | int | None
+
+
 class _StopFlag:
     """Set by SIGINT/SIGTERM while a batch runs (handlers only in the main thread)."""
 
     def __init__(self, out):
         self.event = threading.Event()
         self.out = out
-        self._previous: dict[int, object] = {}
+        self._previous: dict[int, _SignalHandler] = {}
 
     def install(self) -> None:
         if threading.current_thread() is not threading.main_thread():
@@ -202,7 +208,7 @@ class Batch:
             result = self._supervise(m, plan, work_dir, data_dir)
             if result is None:
                 return None
-            if plan.save:
+            if plan.dataset_dir is not None:  # plan.save
                 storage.update_summary(plan.dataset_dir, result)
             return dataclasses.replace(result, directory=work_dir if plan.save else None)
         finally:
@@ -249,8 +255,9 @@ class Batch:
             leftovers = kill_tagged(token)
             master.stop()
         result = storage.read_result(result_path)
-        changed = result is None or not result.final
-        if changed:
+        changed = False
+        if result is None or not result.final:
+            changed = True
             partial = result or known
             reported = partial.reported
             ended = ("the supervisor " + ("hung and was killed" if hung else

@@ -172,7 +172,7 @@ def check_fleet(mission_file: Path, fleet_file: Path | None, rtf: str) -> tuple[
     from magna_master.batch_config import BatchError
     from magna_mavlink.fleet import FleetError, check_against_mission, load_fleet, mavlink_uavs
 
-    modes = {agent.id: agent.mode for agent in load_mission(mission_file).mission.agents}
+    modes: dict[int, str] = {agent.id: agent.mode for agent in load_mission(mission_file).mission.agents}
     flown = mavlink_uavs(modes)
     if not flown:
         if fleet_file is not None:
@@ -211,13 +211,13 @@ def run(args) -> int:
     reports = None if args.no_report or not config.save_data else Reports()
     result = run_batch(config, ask=ask, on_simulation=reports)
     print(format_summary(result), flush=True)
-    saved = result.dataset_dir is not None and result.dataset_dir.is_dir()
-    if saved and not result.interrupted:
-        pictures = draw_pictures(config, result.dataset_dir)
+    saved = result.dataset_dir if result.dataset_dir is not None and result.dataset_dir.is_dir() else None
+    if saved is not None and not result.interrupted:
+        pictures = draw_pictures(config, saved)
         if pictures:
             print("pictures: " + ", ".join(str(p) for p in pictures), flush=True)
-    if saved and reports is not None:
-        reports.finish(result.dataset_dir)
+    if saved is not None and reports is not None:
+        reports.finish(saved)
     if result.interrupted:
         return 130
     return 1 if result.failed_to_run else 0

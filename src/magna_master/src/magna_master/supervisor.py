@@ -120,7 +120,7 @@ class SupervisorCore:
         self.poll = poll
         self._lock = threading.Lock()
         self._termination: Termination | None = None
-        self._termination_wall: float | None = None
+        self._termination_wall = 0.0  # wall seconds from the start to the report, once there is one
         self._wake = threading.Event()
         self._stop = threading.Event()
         self._started: float | None = None
@@ -159,8 +159,8 @@ class SupervisorCore:
         self._started = time.monotonic()
         try:
             with open(self.log_path, "ab") as log:
-                self.launch = subprocess.Popen(self.command, stdout=log, stderr=subprocess.STDOUT,
-                                               stdin=subprocess.DEVNULL, start_new_session=True)
+                launch = self.launch = subprocess.Popen(self.command, stdout=log, stderr=subprocess.STDOUT,
+                                                        stdin=subprocess.DEVNULL, start_new_session=True)
         except OSError as err:
             message = f"cannot start {self.command[0]!r}: {err.strerror or err}; check the launch command"
             result = self._result(START_FAILED, None, [], False, False, message=message)
@@ -171,14 +171,14 @@ class SupervisorCore:
         while True:
             if self.termination is not None or self._stop.is_set():
                 break
-            if self.launch.poll() is not None:
+            if launch.poll() is not None:
                 break
             if self.time_limit is not None and time.monotonic() - self._started >= self.time_limit:
                 timed_out = True
                 grace_ends = time.monotonic() + self.stop_grace
 
                 def ended():
-                    return self.termination is not None or self.launch.poll() is not None or self._stop.is_set()
+                    return self.termination is not None or launch.poll() is not None or self._stop.is_set()
 
                 # a ground station still starting serves its stop service a moment later: ask again until it
                 # does (within the grace), so that it still saves what it has instead of being killed
@@ -198,8 +198,8 @@ class SupervisorCore:
         if self.termination is not None and not self._stop.is_set():
             # The ground station is required in simulation.launch: once it has reported and exited,
             # roslaunch ends the rest by itself. Give it that chance before forcing it.
-            self._wait(self.settle, lambda: self.launch.poll() is not None or self._stop.is_set())
-        end_process_group(self.launch, grace=self.shutdown_timeout)
+            self._wait(self.settle, lambda: launch.poll() is not None or self._stop.is_set())
+        end_process_group(launch, grace=self.shutdown_timeout)
         leftovers = kill_tagged(self.token, exclude=ancestors()) if self.token else []
 
         if self.termination is not None:
@@ -210,7 +210,7 @@ class SupervisorCore:
             kind = TIME_LIMIT
         else:
             kind = CRASHED
-        result = self._result(kind, self.launch.returncode, leftovers, gs_stop_called, timed_out, end_wall=end_wall)
+        result = self._result(kind, launch.returncode, leftovers, gs_stop_called, timed_out, end_wall=end_wall)
         self._write(result)
         return result
 
@@ -232,6 +232,7 @@ class SupervisorCore:
         else:
             wall = time.monotonic() - self._started if self._started is not None else 0.0
         if kind == GROUND_STATION:
+            assert reported is not None  # the kind of a result after the ground station's report
             success, outcome, message = reported.success, reported.outcome, reported.message
         elif kind == TIME_LIMIT:
             success = False
