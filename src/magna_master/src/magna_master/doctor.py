@@ -155,8 +155,12 @@ def check_live_graph(round_trips: int) -> CheckResult:
         rospy.init_node("magna_doctor", anonymous=True, disable_signals=True)
         try:
             heights = []
-            service = rospy.Service(ual(1, "take_off"), TakeOff,
-                                    lambda req: heights.append(req.height) or TakeOffResponse())
+
+            def serve_take_off(req):
+                heights.append(req.height)
+                return TakeOffResponse()
+
+            service = rospy.Service(ual(1, "take_off"), TakeOff, serve_take_off)
             received = []
             got_all = threading.Event()
 

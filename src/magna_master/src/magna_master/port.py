@@ -31,6 +31,12 @@ import re
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # the loaders are imported where they are used, not with this module
+    from magna_gs.mission.loader import LoadedMission
+    from magna_worlds.generate import ResolvedWorld
+    from magna_worlds.model import World
 
 WORLD_FOLDERS = ("Worlds", "worlds")
 MISSION_FOLDERS = ("Missions", "missions")
@@ -141,8 +147,8 @@ def _label(path: Path) -> str:
 @dataclass
 class _World:
     report: FileReport
-    model: object | None = None  # magna_worlds.model.World
-    resolved: object | None = None  # ResolvedWorld, laid out once
+    model: World | None = None
+    resolved: ResolvedWorld | None = None  # laid out once
     places: set[tuple[str, str]] = field(default_factory=set)  # (volume, geometry or "volume")
 
 
@@ -167,7 +173,7 @@ def check_world(path: Path, search_path: Iterable[Path], strict: bool = False, s
 @dataclass
 class _Mission:
     report: FileReport
-    loaded: object | None = None  # magna_gs.mission.loader.LoadedMission
+    loaded: LoadedMission | None = None
     places: set[tuple[str, str]] = field(default_factory=set)
 
 
@@ -190,11 +196,13 @@ def check_mission(path: Path, strict: bool = False) -> _Mission:
 def candidate_worlds(mission: _Mission, worlds: list[_World]) -> list[_World]:
     """The loaded worlds that hold every place the mission names, preferred first (see the module doc)."""
     family, name = mission.report.path.parent.name, mission.report.path.stem
+    assert mission.loaded is not None  # pair_mission asks only for a mission that loads
     holding = [w for w in worlds if w.model is not None and mission.places <= w.places]
     # a fixed wing cannot hover: it needs room to loiter and to land, so room comes before size for it
     fixed_wing = any(agent.airframe.is_fixed_wing for agent in mission.loaded.mission.agents)
 
     def preference(world: _World):
+        assert world.model is not None  # one of `holding`
         same_family = world.report.path.parent.name == family
         size = sum(1 + len(v.geometries) for v in world.model.volumes)
         return (not (same_family and world.report.path.stem == name), not same_family,
@@ -310,10 +318,11 @@ def format_report(report: PortReport, details: bool = True) -> str:
                      "", "", ""))
     for mission in report.missions:
         validates = _cell(mission.validates) if mission.loads and mission.paired else "-"
-        world = mission.world.label if mission.world else ("no world holds it" if mission.loads else "")
+        world_label = mission.world.label if mission.world else ("no world holds it" if mission.loads else "")
         flies = "-" if mission.flight is None else ("yes" if mission.flew else mission.flight)
         rows.append((mission.label, "mission", _cell(mission.loads), str(len(mission.changes)),
-                     str(len(mission.warnings) + len(mission.pair_warnings)), world, validates, flies if flown else ""))
+                     str(len(mission.warnings) + len(mission.pair_warnings)), world_label, validates,
+                     flies if flown else ""))
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
     lines = ["  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)).rstrip() for row in rows]
     lines.insert(1, "  ".join("-" * w for w in widths))
