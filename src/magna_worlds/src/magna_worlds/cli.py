@@ -178,7 +178,7 @@ def summary(resolved, load_seconds: float = 0.0, resolve_seconds: float = 0.0) -
     for volume in world.volumes:
         geometries = []
         for placed in (g for g in resolved.geometries if g.volume is volume):
-            poses = Counter()
+            poses: Counter[str] = Counter()
             for pose_set in placed.poses():
                 poses[pose_set.spec.type] += len(pose_set)
             geometries.append({
@@ -189,7 +189,7 @@ def summary(resolved, load_seconds: float = 0.0, resolve_seconds: float = 0.0) -
             })
         volumes.append({"name": volume.name, "prefix": volume.prefix, "permits": volume.permits,
                         "source": volume.source, "geometries": geometries})
-    by_type = Counter()
+    by_type: Counter[str] = Counter()
     for placed in resolved.geometries:
         for pose_set in placed.poses():
             by_type[pose_set.spec.type] += len(pose_set)

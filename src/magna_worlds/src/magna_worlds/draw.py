@@ -27,7 +27,7 @@ from matplotlib.colors import to_rgb
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
-from mpl_toolkits.mplot3d import Axes3D  # noqa: F401  (registers the 3-D projection)
+from mpl_toolkits.mplot3d import Axes3D  # importing it registers the 3-D projection
 from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
 
 from magna_common.files import write_atomically
@@ -143,6 +143,7 @@ def draw_world(resolved: ResolvedWorld, path, elev: float = 25.0, azim: float = 
     fig = Figure(figsize=(12.0, 8.0), dpi=dpi)
     FigureCanvasAgg(fig)
     ax = fig.add_axes((-0.02, -0.04, 0.74, 1.0), projection="3d")
+    assert isinstance(ax, Axes3D)  # what projection="3d" makes
     ax.computed_zorder = False  # draw by layer (surfaces, obstacles, poses), so poses are never hidden
     points: list[np.ndarray] = []  # everything drawn, for the view box
     legend: list = []
@@ -215,10 +216,10 @@ def _face_alpha(alpha: float) -> float:
     return MIN_ALPHA + (MAX_ALPHA - MIN_ALPHA) * float(min(max(alpha, 0.0), 1.0))
 
 
-def _outline_color(color) -> tuple[float, float, float]:
+def _outline_color(color: tuple[float, float, float]) -> tuple[float, float, float]:
     """The geometry's colour pulled towards dark grey: visible on white and on the grey panes."""
-    c = np.asarray(color, dtype=float)
-    return tuple(float(v) for v in 0.55 * c + 0.45 * 0.15)
+    red, green, blue = (0.55 * c + 0.45 * 0.15 for c in color)
+    return red, green, blue
 
 
 def _draw_geometry(ax, placed: PlacedGeometry) -> np.ndarray:
