@@ -11,7 +11,7 @@ import os
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 
-from magna_common.files import write_atomically
+from magna_common.files import write_text_atomically
 
 STYLE = """
 body { font-family: Helvetica, Arial, sans-serif; margin: 1.5em auto; max-width: 1100px; color: #222; }
@@ -68,4 +68,4 @@ def page(title: str, body: str) -> str:
 
 def write_page(path: Path, text: str) -> Path:
     """Write `path` all or nothing: a reader sees the old page or the new one, never half of one."""
-    return write_atomically(path, lambda out: out.write(text), overwrite=True)
+    return write_text_atomically(path, text, overwrite=True)

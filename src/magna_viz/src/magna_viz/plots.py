@@ -30,18 +30,19 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
+from matplotlib.artist import Artist
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch, PathPatch
 from matplotlib.path import Path as MplPath
-from mpl_toolkits.mplot3d import Axes3D  # noqa: F401  (registers the 3-D projection)
+from mpl_toolkits.mplot3d import Axes3D
 from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
 
 from magna_common.files import write_atomically
 from magna_viz.latency import DEFAULT_THRESHOLD, command_latencies, latency_samples
 from magna_viz.recorded_world import WorldShape
-from magna_viz.recording import Recording, UavRecord
+from magna_viz.recording import Proximity, Recording, UavRecord
 from magna_worlds.draw import MAX_ALPHA, MIN_ALPHA, OBSTACLE_COLOR, content_bounds, shape_mesh
 
 FIGSIZE = (10.0, 5.0)  # inches
@@ -57,10 +58,10 @@ class PlotUnavailable(RuntimeError):
     """The recording lacks what a figure needs; the message says what."""
 
 
-class DrawnPlots(dict):
+class DrawnPlots(dict[str, Path]):
     """{name: PNG path} of the figures drawn, and `skipped` {name: why} for the others."""
 
-    def __init__(self):
+    def __init__(self) -> None:
         super().__init__()
         self.skipped: dict[str, str] = {}
 
@@ -86,8 +87,9 @@ def _face_alpha(alpha: float) -> float:
     return MIN_ALPHA + (MAX_ALPHA - MIN_ALPHA) * float(min(max(alpha, 0.0), 1.0))
 
 
-def _outline_rgb(color) -> tuple[float, float, float]:
-    return tuple(float(v) for v in 0.55 * np.asarray(color, dtype=float) + 0.45 * 0.15)
+def _outline_rgb(color: Sequence[float]) -> tuple[float, float, float]:
+    r, g, b = 0.55 * np.asarray(color, dtype=float) + 0.45 * 0.15
+    return float(r), float(g), float(b)
 
 
 def _mesh(shape: WorldShape) -> tuple[list[np.ndarray], list[np.ndarray]]:
@@ -99,10 +101,10 @@ def _uav_label(u: UavRecord) -> str:
     return f"{u.name} ({u.model})" if u.model != "?" else u.name
 
 
-def _style_legend(has_paths: bool, has_goals: bool, n_obstacles: int, n_geometries: int) -> list:
-    handles = [Line2D([], [], color="black", marker="o", linestyle="", markersize=6, markerfacecolor="white",
-                      label="start"),
-               Line2D([], [], color="black", marker="s", linestyle="", markersize=6, label="end")]
+def _style_legend(has_paths: bool, has_goals: bool, n_obstacles: int, n_geometries: int) -> list[Artist]:
+    handles: list[Artist] = [
+        Line2D([], [], color="black", marker="o", linestyle="", markersize=6, markerfacecolor="white", label="start"),
+        Line2D([], [], color="black", marker="s", linestyle="", markersize=6, label="end")]
     if has_paths:
         handles += [Line2D([], [], color="black", linestyle="--", linewidth=0.9, label="raw path"),
                     Line2D([], [], color="black", linestyle=":", linewidth=1.4, label="smoothed path")]
@@ -115,9 +117,9 @@ def _style_legend(has_paths: bool, has_goals: bool, n_obstacles: int, n_geometri
     return handles
 
 
-def _uav_legend(uavs: list[UavRecord]) -> list:
+def _uav_legend(uavs: list[UavRecord]) -> list[Artist]:
     shown = uavs[:MAX_LEGEND_UAVS]
-    handles = [Line2D([], [], color=u.rgb, linewidth=2.0, label=_uav_label(u)) for u in shown]
+    handles: list[Artist] = [Line2D([], [], color=u.rgb, linewidth=2.0, label=_uav_label(u)) for u in shown]
     if len(uavs) > len(shown):
         handles.append(Patch(facecolor="none", edgecolor="none", label=f"... and {len(uavs) - len(shown)} more"))
     return handles
@@ -137,7 +139,7 @@ def _gapped(t: np.ndarray, *series: np.ndarray) -> tuple[np.ndarray, ...]:
                                                                for y in series))
 
 
-def _shared(values) -> float | None:
+def _shared(values: Sequence[float]) -> float | None:
     """The one finite value all of `values` have, else None (several, or none finite)."""
     finite = {round(float(v), 9) for v in values if math.isfinite(v)}
     return finite.pop() if len(finite) == 1 else None
@@ -155,8 +157,9 @@ def plot_trajectories_3d(recording: Recording, out_png: Path) -> Path:
     if not uavs:
         raise _no_tracks(recording)
     fig = _figure()
-    ax = fig.add_axes((-0.06, -0.1, 0.84, 1.12), projection="3d")
-    ax.computed_zorder = False  # by layer: world, obstacles, then tracks on top
+    # computed_zorder=False: by layer: world, obstacles, then tracks on top
+    ax = Axes3D(fig, (-0.06, -0.1, 0.84, 1.12), computed_zorder=False)
+    fig.add_axes(ax)
     points: list[np.ndarray] = []
     for shape in recording.world.geometries:
         faces, outline = _mesh(shape)
@@ -167,7 +170,8 @@ def plot_trajectories_3d(recording: Recording, out_png: Path) -> Path:
         ax.add_collection3d(Line3DCollection(outline, colors=[(*_outline_rgb(shape.color), 0.6)], linewidths=0.6,
                                              zorder=2), autolim=False)
         points.append(np.vstack(outline))
-    obstacle_faces, obstacle_lines = [], []
+    obstacle_faces: list[np.ndarray] = []
+    obstacle_lines: list[np.ndarray] = []
     for shape in recording.world.obstacles:
         faces, outline = _mesh(shape)
         obstacle_faces += faces
@@ -208,7 +212,8 @@ def plot_trajectories_3d(recording: Recording, out_png: Path) -> Path:
 
 def _silhouette(faces: list[np.ndarray]) -> MplPath | None:
     """The union of the faces seen from above: every face counter-clockwise in one path, filled non-zero."""
-    verts, codes = [], []
+    verts: list[np.ndarray] = []
+    codes: list[np.uint8] = []
     for face in faces:
         xy = face[:, :2]
         area = 0.5 * float(np.sum(xy[:, 0] * np.roll(xy[:, 1], -1) - np.roll(xy[:, 0], -1) * xy[:, 1]))
@@ -249,7 +254,7 @@ def plot_trajectories_top(recording: Recording, out_png: Path) -> Path:
                                    zorder=1))
             for line in _flat_outline(outline):
                 ax.plot(line[:, 0], line[:, 1], color=_outline_rgb(shape.color), linewidth=0.6, alpha=0.7, zorder=2)
-        points.append(silhouette.vertices)
+        points.append(np.asarray(silhouette.vertices))
     for u in uavs:
         xy = u.position.xyz[:, :2]
         points.append(xy)
@@ -280,7 +285,8 @@ def plot_trajectories_top(recording: Recording, out_png: Path) -> Path:
     return _finish_trajectories(fig, recording, uavs, "Top view", legend_x=0.7, out_png=out_png)
 
 
-def _finish_trajectories(fig: Figure, recording: Recording, uavs, title: str, legend_x: float, out_png: Path) -> Path:
+def _finish_trajectories(fig: Figure, recording: Recording, uavs: list[UavRecord], title: str, legend_x: float,
+                         out_png: Path) -> Path:
     """The legend both trajectory figures share (UAVs, then the kinds of line and shape), the title, the file."""
     has_paths = any(u.raw_paths or u.smoothed_paths for u in uavs)
     handles = _uav_legend(uavs) + _style_legend(has_paths, any(len(u.goals) for u in uavs),
@@ -294,21 +300,21 @@ def _finish_trajectories(fig: Figure, recording: Recording, uavs, title: str, le
 
 def plot_distances(recording: Recording, out_png: Path) -> Path:
     """Distance to the nearest UAV and obstacle over time per UAV, contact thresholds dashed, contacts marked."""
-    uavs = [u for u in recording.uavs.values() if u.proximity is not None and len(u.proximity.time)]
-    if not uavs:
+    measured: list[tuple[UavRecord, Proximity]] = [(u, u.proximity) for u in recording.uavs.values()
+                                                   if u.proximity is not None and len(u.proximity.time)]
+    if not measured:
         raise PlotUnavailable(f"{recording.sim_dir}: no distances: no CSV gaps and no positions in the bag")
     fig = _figure()
     top = fig.add_axes((0.08, 0.55, 0.68, 0.35))
     bottom = fig.add_axes((0.08, 0.1, 0.68, 0.35), sharex=top)
     episodes = 0
     # one black line when every UAV has the same threshold, else each its own in its colour
-    pair = _shared([v for u in uavs for v in u.proximity.uav_threshold])
-    own = _shared([u.proximity.obstacle_threshold for u in uavs])
+    pair = _shared([v for _, p in measured for v in p.uav_threshold])
+    own = _shared([p.obstacle_threshold for _, p in measured])
     for value, ax in ((pair, top), (own, bottom)):
         if value is not None:
             ax.axhline(value, color="black", linestyle="--", linewidth=0.9)
-    for k, u in enumerate(uavs):
-        p = u.proximity
+    for k, (u, p) in enumerate(measured):
         t, uav_distance, obstacle_distance, threshold = _gapped(p.time, p.uav_distance, p.obstacle_distance,
                                                                 p.uav_threshold)
         # a pair's distance is the same for both: the first drawn wider, so both colours show
@@ -334,8 +340,8 @@ def plot_distances(recording: Recording, out_png: Path) -> Path:
         ax.grid(True, linewidth=0.3, alpha=0.5)
         ax.tick_params(labelsize=8)
     top.tick_params(labelbottom=False)
-    sources = sorted({u.proximity.source for u in uavs})
-    handles = _uav_legend(uavs) + [
+    sources = sorted({p.source for _, p in measured})
+    handles = _uav_legend([u for u, _ in measured]) + [
         Line2D([], [], color="black", linestyle="--", linewidth=0.9, label="contact below: the safety radii\n"
                "(UAV pair: both; obstacle: own)"),
         Line2D([], [], color=CONTACT, marker="x", linestyle="", markersize=7, label=f"contact began ({episodes})"),
@@ -437,7 +443,8 @@ def plot_timeline(recording: Recording, out_png: Path) -> Path:
     ax.grid(True, axis="x", linewidth=0.3, alpha=0.5)
     ax.tick_params(axis="x", labelsize=8)
     uavs = [u for u in recording.uavs.values() if any(i.uav_id == u.id for i in timeline.intervals)]
-    handles = [Patch(facecolor=(*u.rgb, 0.9), edgecolor=u.rgb, label=f"{u.name}'s state") for u in uavs]
+    handles: list[Artist] = [Patch(facecolor=(*u.rgb, 0.9), edgecolor=u.rgb, label=f"{u.name}'s state")
+                             for u in uavs]
     handles += [Patch(facecolor=(*NEUTRAL, 0.9), edgecolor=NEUTRAL, label="mission state"),
                 Patch(facecolor=(*NEUTRAL, 0.35), edgecolor=NEUTRAL, label="container (bold)")]
     if any(i.started_before for i in timeline.intervals):
