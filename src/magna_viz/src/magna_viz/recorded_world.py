@@ -12,8 +12,10 @@ Without world.json, the obstacles are the bounding spheres of the bag's obstacle
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 
@@ -25,6 +27,7 @@ from magna_worlds.generate import ResolvedWorld, resolve_world
 from magna_worlds.loader import load_world
 from magna_worlds.shapes import ShapeSpec
 from magna_worlds.transforms import Frame
+from magna_worlds.vocabulary import Shape
 
 RECORD_COLOR = (0.55, 0.57, 0.62)  # geometries known only from the record, which keeps no colours
 RECORD_ALPHA = 0.3
@@ -134,16 +137,22 @@ def _same_obstacles(resolved: ResolvedWorld, recorded: tuple[RecordedObstacle, .
 
 def _resolved_shapes(resolved: ResolvedWorld) -> list[WorldShape]:
     shapes = [WorldShape(f"{g.volume.name}/{g.geometry.name}", "geometry", g.geometry.spec, g.frame,
-                         tuple(float(c) for c in g.geometry.color), float(g.geometry.alpha))
+                         _rgb(g.geometry.color), float(g.geometry.alpha))
               for g in resolved.geometries]
     shapes += [WorldShape(o.name, "obstacle", obstacle_spec(o), Frame.from_xyz_quaternion(o.position, o.quaternion),
                           OBSTACLE_COLOR, 1.0) for o in resolved.obstacles()]
     return shapes
 
 
+def _rgb(color: Sequence[float]) -> tuple[float, float, float]:
+    r, g, b = color
+    return float(r), float(g), float(b)
+
+
 def _record_spec(item: RecordedGeometry | RecordedObstacle) -> ShapeSpec:
-    polygon = tuple(tuple(v[:2]) for v in item.polygon)
-    return ShapeSpec(item.shape, tuple(item.dimensions), polygon)
+    polygon = tuple((v[0], v[1]) for v in item.polygon)
+    # world.json holds the shapes of checked ShapeSpecs (magna_worlds.generate); the record reads plain text
+    return ShapeSpec(cast(Shape, item.shape), tuple(item.dimensions), polygon)
 
 
 def _record_shapes(part: RecordedWorldPart) -> list[WorldShape]:

@@ -29,6 +29,7 @@ import re
 from collections import defaultdict
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -38,6 +39,9 @@ from magna_common.simulation_bag import MARKERS, SM_KINDS, UAL_KINDS, BagError, 
 from magna_common.storage_tree import BAG_FILE, MISSION_FILE, RESULT_FILE, WORLD_FILE
 from magna_viz.recorded_world import RecordedWorld, world_from_markers, world_from_record
 from magna_viz.timeline import StatusEvent, Timeline, build_timeline
+
+if TYPE_CHECKING:
+    from magna_uav.shapes import ShapeTable
 
 CSV_PATTERN = re.compile(r"uav_(\d+)\.csv")
 DEFAULT_COLORS = ((0.12, 0.47, 0.71), (1.0, 0.5, 0.05), (0.17, 0.63, 0.17), (0.84, 0.15, 0.16),
@@ -357,6 +361,7 @@ def _uav_record(uav: int, k: int, config, frame, csv: Path | None, bag: _BagData
         if items:
             return _samples(items, bag_name)
         if frame is not None:
+            assert csv is not None  # a frame is read from the UAV's CSV
             return _csv_samples(frame, prefix, csv.name)
         return Samples.empty()
 
@@ -373,8 +378,8 @@ def _fill_proximity(uavs: dict[int, UavRecord], frames: dict, csvs: dict[int, Pa
     """From the bag where it has the UAV's poses and the obstacle markers: every simulator pose, also while a
     manager records no rows (after an abort, between some roles); else from the UAV's CSV."""
     radii = {uav: u.safety_radius for uav, u in uavs.items()}
-    markers = bag is not None and bool(bag.markers)
-    epochs = _obstacle_epochs(bag.markers) if markers else []
+    markers = bag.markers if bag is not None else []
+    epochs = _obstacle_epochs(markers) if markers else []
     for uav, record in uavs.items():
         from_bag = bag is not None and bool(bag.poses.get(uav))
         if from_bag and (markers or uav not in frames):
@@ -411,14 +416,14 @@ def _csv_proximity(frame, uav: int, radii: dict[int, float], source: str) -> Pro
                      collided & with_obstacle, source)
 
 
-def _obstacle_epochs(markers: list) -> list[tuple[float, object]]:
+def _obstacle_epochs(markers: list) -> list[tuple[float, ShapeTable | None]]:
     """(from time, the obstacles' shapes) after each MarkerArray, as the managers' ObstacleMarkers keep them: the
     distances are measured to each obstacle's real shape, as the managers' evaluator measures them."""
     from magna_uav.ros_data import ObstacleMarkers
     from magna_uav.shapes import ShapeTable
 
     table = ObstacleMarkers()
-    epochs = []
+    epochs: list[tuple[float, ShapeTable | None]] = []
     for t, message in markers:
         table.apply(message)
         obstacles = table.obstacles()
@@ -426,7 +431,8 @@ def _obstacle_epochs(markers: list) -> list[tuple[float, object]]:
     return epochs
 
 
-def _bag_proximity(record: UavRecord, uavs: dict[int, UavRecord], epochs: list) -> Proximity:
+def _bag_proximity(record: UavRecord, uavs: dict[int, UavRecord], epochs: list[tuple[float, ShapeTable | None]]
+                   ) -> Proximity:
     t, p = record.position.time, record.position.xyz
     best_gap = np.full(len(t), np.inf)
     distance = np.full(len(t), np.nan)

@@ -90,26 +90,32 @@ def choose_config(world: str, override: Path | None = None, rviz_dir: Path = RVI
 Box = tuple[tuple[float, float], tuple[float, float], tuple[float, float]]  # (xmin, xmax), (ymin, ymax), (zmin, zmax)
 
 
+def _box(ranges: Iterable[tuple[float, float]]) -> Box:
+    """The three (low, high) ranges x, y, z as a Box."""
+    x, y, z = ranges
+    return x, y, z
+
+
 def box_of_points(points: Iterable[Sequence[float]]) -> Box | None:
     pts = [p for p in points if all(math.isfinite(v) for v in p[:3])]
     if not pts:
         return None
-    return tuple((min(p[i] for p in pts), max(p[i] for p in pts)) for i in range(3))  # type: ignore[return-value]
+    return _box((min(p[i] for p in pts), max(p[i] for p in pts)) for i in range(3))
 
 
 def union(*boxes: Box | None) -> Box | None:
     present = [b for b in boxes if b is not None]
     if not present:
         return None
-    return tuple((min(b[i][0] for b in present), max(b[i][1] for b in present)) for i in range(3))  # type: ignore
+    return _box((min(b[i][0] for b in present), max(b[i][1] for b in present)) for i in range(3))
 
 
 def clip(box: Box | None, limits: Box | None) -> Box | None:
     """`box` inside `limits`; `box` itself when they do not meet or one is missing."""
     if box is None or limits is None:
         return box or limits
-    out = tuple((max(b[0], lim[0]), min(b[1], lim[1])) for b, lim in zip(box, limits, strict=True))
-    return out if all(lo <= hi for lo, hi in out) else box  # type: ignore[return-value]
+    out = _box((max(b[0], lim[0]), min(b[1], lim[1])) for b, lim in zip(box, limits, strict=True))
+    return out if all(lo <= hi for lo, hi in out) else box
 
 
 def world_boxes(world: WorldRecord) -> tuple[Box | None, Box | None]:
@@ -118,7 +124,8 @@ def world_boxes(world: WorldRecord) -> tuple[Box | None, Box | None]:
     content: Box | None = None
     for part in world.parts.values():
         boundaries = union(boundaries, _as_box(part.world_boundaries))
-        for item in [*part.geometries, *part.obstacles]:
+        items: list[RecordedGeometry | RecordedObstacle] = [*part.geometries, *part.obstacles]
+        for item in items:
             content = union(content, _item_box(item))
     return boundaries, content
 
@@ -126,7 +133,7 @@ def world_boxes(world: WorldRecord) -> tuple[Box | None, Box | None]:
 def _as_box(value: tuple[tuple[float, float], ...] | None) -> Box | None:
     if value is None or not all(lo <= hi for lo, hi in value):
         return None
-    return value  # type: ignore[return-value]
+    return _box(value)  # the record reads boundaries as three (low, high) pairs
 
 
 def _item_box(item: RecordedGeometry | RecordedObstacle) -> Box | None:
@@ -153,7 +160,7 @@ def pad(box: Box, fraction: float = 0.05, minimum: float = 4.0) -> Box:
             mid = (lo + hi) / 2.0
             lo, hi = mid - minimum / 2.0, mid + minimum / 2.0
         out.append((lo, hi))
-    return tuple(out)  # type: ignore[return-value]
+    return _box(out)
 
 
 @dataclass(frozen=True)
@@ -199,7 +206,8 @@ def fit_orbit(box: Box, yaw: float, pitch: float, aspect: float, fov_y: float = 
         shift_y = (max(ys) + min(ys)) / 2.0 * tan_y * distance
         focal = tuple(f + shift_x * r + shift_y * u for f, r, u in zip(focal, right, up, strict=True))
         distance = needed(focal)
-    return OrbitView(focal, max(distance, 1.0), yaw, pitch)  # type: ignore[arg-type]
+    x, y, z = focal
+    return OrbitView((x, y, z), max(distance, 1.0), yaw, pitch)
 
 
 def _corners(box: Box):

@@ -121,12 +121,12 @@ class Scene:
             return
         if stamp is not None and track.stamp is not None and stamp < track.stamp - TIME_JUMP_BACK:
             self.restart()
-        position = tuple(float(v) for v in position)
-        if not all(math.isfinite(v) for v in position):
+        here = _xyz(position)
+        if not all(math.isfinite(v) for v in here):
             return
-        track.position, track.orientation, track.stamp = position, tuple(float(q) for q in orientation), stamp
-        if not track.trail or _distance(track.trail[-1], position) >= self.trail_step:
-            track.trail.append(position)
+        track.position, track.orientation, track.stamp = here, _xyzw(orientation), stamp
+        if not track.trail or _distance(track.trail[-1], here) >= self.trail_step:
+            track.trail.append(here)
             if self.max_trail and len(track.trail) > self.max_trail:
                 del track.trail[: len(track.trail) - self.max_trail]
         self.changed = True
@@ -135,18 +135,18 @@ class Scene:
         track = self.tracks.get(uav_id)
         if track is None:
             return
-        points = [tuple(float(v) for v in p) for p in points]
+        path = [_xyz(p) for p in points]
         if smoothed:
-            track.smoothed_path = points
+            track.smoothed_path = path
         else:
-            track.raw_path = points
+            track.raw_path = path
         self.changed = True
 
     def update_goal(self, uav_id: int, position: Sequence[float] | None) -> None:
         track = self.tracks.get(uav_id)
         if track is None:
             return
-        track.goal = None if position is None else tuple(float(v) for v in position)
+        track.goal = None if position is None else _xyz(position)
         self.changed = True
 
     def restart(self) -> None:
@@ -262,6 +262,16 @@ class Scene:
 def is_clear_only(markers: MarkerArray) -> bool:
     """True when a MarkerArray only deletes (what the world node sends when the last world part goes)."""
     return all(m.action in (Marker.DELETE, Marker.DELETEALL) for m in markers.markers)
+
+
+def _xyz(values: Sequence[float]) -> tuple[float, float, float]:
+    x, y, z = values
+    return float(x), float(y), float(z)
+
+
+def _xyzw(values: Sequence[float]) -> tuple[float, float, float, float]:
+    x, y, z, w = values
+    return float(x), float(y), float(z), float(w)
 
 
 def _distance(a: Sequence[float], b: Sequence[float]) -> float:
