@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 import os
 import shutil
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -143,7 +144,7 @@ def view_box(world: WorldRecord | None, flights: rc.Box | None, fit: str) -> rc.
     return rc.pad(box) if box is not None else None
 
 
-def make_plan(options: ReplayOptions, environ: dict | None = None) -> Plan:
+def make_plan(options: ReplayOptions, environ: Mapping[str, str] | None = None) -> Plan:
     """Check everything a replay needs; ReplayError (nothing started, nothing written) when something is off."""
     from magna_viz.scene import styles_from_mission
 

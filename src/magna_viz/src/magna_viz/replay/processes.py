@@ -24,6 +24,7 @@ import time
 import xmlrpc.client
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from magna_common.files import write_atomically
 from magna_common.ros_names import VIZ_BAG_WORLD, VIZ_SCENE, WORLD_MARKERS, ual
@@ -172,7 +173,8 @@ class Replay:
             for name, (process, log) in processes.items():
                 if process.poll() is not None:
                     raise ReplayFailure(f"{name} ended at start (exit {process.returncode})" + _tail(log))
-            code, _msg, state = proxy.getSystemState("/magna_replay")
+            answer: Any = proxy.getSystemState("/magna_replay")
+            code, _msg, state = answer  # the ROS master API answers [code, status message, value]
             subscribed = {topic for topic, nodes in (state[1] if code == 1 else []) if nodes}
             waiting = [f"{who} on {topic}" for topic, who in wanted.items() if topic not in subscribed]
             if not waiting:
@@ -184,6 +186,7 @@ class Replay:
 
     def _prepare_out_dir(self) -> None:
         out_dir = self.plan.out_dir
+        assert out_dir is not None  # make_plan gives every headless replay its folder
         out_dir.mkdir(parents=True, exist_ok=True)
         if self.plan.options.force:  # numbered frames of an earlier replay would mix with these
             for old in out_dir.glob("frame_*.png"):
@@ -200,7 +203,8 @@ class Replay:
         return write_atomically(path, lambda out: image.save(out, format="PNG"), overwrite=True, binary=True)
 
     def _headless(self, play, progress: _Progress, rviz, work: Path) -> None:
-        options, bag = self.plan.options, self.plan.bag
+        options, bag, out_dir = self.plan.options, self.plan.bag, self.plan.out_dir
+        assert out_dir is not None  # make_plan gives every headless replay its folder
         bar = _bar(bag.duration, options.progress)
         next_shot = options.every if options.every > 0 else math.inf
         try:
@@ -210,7 +214,7 @@ class Replay:
                                         + _tail(work / "rviz.log"))
                 elapsed = progress.elapsed
                 if elapsed >= next_shot:
-                    frame = self.plan.out_dir / f"frame_{len(self.frames) + 1:04d}.png"
+                    frame = out_dir / f"frame_{len(self.frames) + 1:04d}.png"
                     self.frames.append(self._save(self._grab(), frame))
                     while next_shot <= elapsed:
                         next_shot += options.every
@@ -226,12 +230,12 @@ class Replay:
             bar.close()
         final = self._settled(rviz, work)
         self.written += self.frames
-        self.written.append(self._save(final, self.plan.out_dir / FINAL_NAME))
-        images = self.frames + [self.plan.out_dir / FINAL_NAME]
+        self.written.append(self._save(final, out_dir / FINAL_NAME))
+        images = self.frames + [out_dir / FINAL_NAME]
         if options.gif:
-            self.written.append(write_gif(images, self.plan.out_dir / GIF_NAME, options.fps))
+            self.written.append(write_gif(images, out_dir / GIF_NAME, options.fps))
         if options.mp4:
-            self.written.append(write_mp4(images, self.plan.out_dir / MP4_NAME, options.fps))
+            self.written.append(write_mp4(images, out_dir / MP4_NAME, options.fps))
 
     def _settled(self, rviz, work: Path, least: float = 1.5, most: float = 15.0):
         """The screen once rviz has drawn the last state: two grabs half a second apart that agree."""
