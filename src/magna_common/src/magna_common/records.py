@@ -119,6 +119,7 @@ class _Record:
     """from_dict/to_dict over the dataclass fields declared with `_key`; other keys go to `extra`."""
 
     extra: dict[str, Any]
+    __dataclass_fields__: ClassVar[dict[str, dataclasses.Field[Any]]]  # every subclass is a dataclass
 
     @classmethod
     def _keyed_fields(cls) -> list[tuple[dataclasses.Field, str]]:
