@@ -84,7 +84,8 @@ def save_samples(samples: Samples, path: Path) -> None:
               "step": samples.step, "sources": np.asarray(samples.sources, dtype=str)}
     if samples.images is not None:
         arrays["images"] = samples.images
-    write_atomically(path, lambda out: np.savez(out, **arrays), overwrite=True, binary=True)
+    # numpy's stub: a key of `arrays` could be allow_pickle (none is)
+    write_atomically(path, lambda out: np.savez(out, **arrays), overwrite=True, binary=True)  # type: ignore[arg-type]
 
 
 def load_samples(path: Path) -> Samples:

@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import warnings
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
@@ -42,6 +43,13 @@ def _register_norms(module: nn.Module, **norms: Normalizer) -> None:
 class VectorNetwork(nn.Module):
     """sel_vel = net((x - x_mean) / x_scale) * y_scale + y_mean."""
 
+    if TYPE_CHECKING:  # the buffers _register_norms adds, declared for mypy only: TorchScript reads class
+        # annotations, and cannot resolve postponed ones
+        x_mean: torch.Tensor
+        x_scale: torch.Tensor
+        y_mean: torch.Tensor
+        y_scale: torch.Tensor
+
     def __init__(self, net: nn.Module, x_norm: Normalizer, y_norm: Normalizer):
         super().__init__()
         self.net = net
@@ -53,6 +61,15 @@ class VectorNetwork(nn.Module):
 
 class ImageNetwork(nn.Module):
     """The same for CNN+MLP networks: the depth image is normalised too (one mean and scale)."""
+
+    if TYPE_CHECKING:  # the buffers _register_norms adds, declared for mypy only: TorchScript reads class
+        # annotations, and cannot resolve postponed ones
+        x_mean: torch.Tensor
+        x_scale: torch.Tensor
+        y_mean: torch.Tensor
+        y_scale: torch.Tensor
+        image_mean: torch.Tensor
+        image_scale: torch.Tensor
 
     def __init__(self, net: nn.Module, x_norm: Normalizer, y_norm: Normalizer, image_norm: Normalizer):
         super().__init__()
@@ -80,9 +97,11 @@ def spec_for(run: RunConfig, about: dict | None = None) -> dict:
 
 def _raw_test_inputs(prepared: Prepared) -> tuple[np.ndarray, np.ndarray | None]:
     part = prepared.test if len(prepared.test) else prepared.val
-    x = prepared.x_norm.invert(part.x[:CHECK_SAMPLES])
-    images = None if part.images is None else prepared.image_norm.invert(part.images[:CHECK_SAMPLES])
-    return x.astype(np.float32), None if images is None else images.astype(np.float32)
+    x = prepared.x_norm.invert(part.x[:CHECK_SAMPLES]).astype(np.float32)
+    if part.images is None:
+        return x, None
+    assert prepared.image_norm is not None  # fitted whenever the samples have images (mlr.preprocess)
+    return x, prepared.image_norm.invert(part.images[:CHECK_SAMPLES]).astype(np.float32)
 
 
 def export(net: nn.Module, run: RunConfig, prepared: Prepared, path: str | Path, about: dict | None = None,

@@ -66,9 +66,10 @@ def _export_is_current(out: Path, sweep: Sweep, names: list[str]) -> Path | None
     if not path.is_file() or not spec.is_file():
         return None
     finished = [_finished(out / name, run) for name, run in zip(names, sweep.runs, strict=True)]
-    if any(result is None for result in finished):
+    results = [result for result in finished if result is not None]
+    if len(results) < len(finished):
         return None
-    best = max(finished, key=lambda r: (r.val_accuracy, -r.val_loss))
+    best = max(results, key=lambda r: (r.val_accuracy, -r.val_loss))
     try:
         about = json.loads(spec.read_text()).get("about", {})
     except (OSError, json.JSONDecodeError):

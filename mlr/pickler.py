@@ -269,6 +269,7 @@ def _neighbors_at(steps: UavSteps, i: int, teacher: Teacher) -> tuple[list, list
     vel = [steps.others[j][1][i] for j in chosen]
     obstacles = []
     if teacher.n_obstacles and steps.obstacle_gap is not None:
+        assert steps.obstacle_pos is not None  # the CSV and bag readers give positions and gaps together
         for k in range(steps.obstacle_gap.shape[1]):
             gap = steps.obstacle_gap[i, k]
             if math.isfinite(gap) and gap < teacher.neighbor_dist:

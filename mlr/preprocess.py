@@ -67,7 +67,7 @@ class Prepared:
         return getattr(self, name)
 
 
-def split_indices(n: int, shares: tuple[float, float, float], seed: int) -> tuple[np.ndarray, ...]:
+def split_indices(n: int, shares: tuple[float, float, float], seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Shuffled indices of the train, validation and test parts (the same for the same n, shares, seed)."""
     order = np.random.default_rng(seed).permutation(n)
     n_train = int(round(shares[0] * n))
@@ -79,17 +79,17 @@ def prepare(samples: Samples, shares: tuple[float, float, float] = (0.7, 0.2, 0.
     if len(samples) < 10:
         raise ValueError(f"only {len(samples)} samples: too few to split into train, validation and test "
                          "(record more simulations, or check role, algorithm and datasets in the config)")
-    parts_idx = split_indices(len(samples), shares, seed)
-    train = parts_idx[0]
+    train, val, test = split_indices(len(samples), shares, seed)
     x_norm, y_norm = Normalizer.fit(samples.x[train]), Normalizer.fit(samples.y[train])
-    image_norm = Normalizer.fit(samples.images[train], per_column=False) if samples.images is not None else None
+    images = samples.images
+    image_norm = Normalizer.fit(images[train], per_column=False) if images is not None else None
 
     def part(idx: np.ndarray) -> Part:
         return Part(x_norm.apply(samples.x[idx]).astype(np.float32), y_norm.apply(samples.y[idx]).astype(np.float32),
                     samples.y[idx].astype(float), samples.max_speed[idx].astype(float),
-                    None if image_norm is None else image_norm.apply(samples.images[idx]).astype(np.float32))
+                    None if images is None or image_norm is None else image_norm.apply(images[idx]).astype(np.float32))
 
-    return Prepared(*(part(idx) for idx in parts_idx), x_norm, y_norm, image_norm)
+    return Prepared(part(train), part(val), part(test), x_norm, y_norm, image_norm)
 
 
 def save_prepared(prepared: Prepared, out) -> None:
@@ -103,13 +103,13 @@ def save_prepared(prepared: Prepared, out) -> None:
                    f"{name}_max_speed": part.max_speed}
         if part.images is not None:
             arrays[f"{name}_images"] = part.images
-    np.savez(out, **arrays)
+    np.savez(out, **arrays)  # type: ignore[arg-type]  # numpy's stub: a key could be allow_pickle (none is)
 
 
 def load_prepared(path) -> Prepared:
     with np.load(path) as data:
         image_norm = Normalizer(data["image_mean"], data["image_scale"]) if "image_mean" in data else None
-        parts = [Part(data[f"{n}_x"], data[f"{n}_y"], data[f"{n}_y_raw"], data[f"{n}_max_speed"],
-                      data[f"{n}_images"] if f"{n}_images" in data else None) for n in PARTS]
-        return Prepared(*parts, Normalizer(data["x_mean"], data["x_scale"]),
+        train, val, test = (Part(data[f"{n}_x"], data[f"{n}_y"], data[f"{n}_y_raw"], data[f"{n}_max_speed"],
+                                 data[f"{n}_images"] if f"{n}_images" in data else None) for n in PARTS)
+        return Prepared(train, val, test, Normalizer(data["x_mean"], data["x_scale"]),
                         Normalizer(data["y_mean"], data["y_scale"]), image_norm)

@@ -210,6 +210,7 @@ def _figure(bars: list, path: Path) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.artist import Artist
     from matplotlib.patches import Patch
 
     colors = {SCENARIOS[0].key: "tab:blue", SCENARIOS[1].key: "tab:orange"}
@@ -224,7 +225,8 @@ def _figure(bars: list, path: Path) -> None:
     ax.set_ylabel("test accuracy (%)")
     ax.set_ylim(min(70, min(acc * 100 for _, _, acc in bars) - 5), 100)
     ax.axhline(93, color="tab:green", lw=1, ls=":")
-    handles = [Patch(color=colors[s.key], label=s.title) for s in SCENARIOS if any(b[0] is s for b in bars)]
+    handles: list[Artist] = [Patch(color=colors[s.key], label=s.title) for s in SCENARIOS
+                             if any(b[0] is s for b in bars)]
     handles += [Patch(color="black", alpha=0.35, label="the thesis's range"),
                 plt.Line2D([], [], color="tab:green", ls=":", label="target 93%")]
     ax.legend(handles=handles, loc="lower right", fontsize=8)

@@ -18,8 +18,10 @@ import functools
 import json
 import math
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import TypedDict
 
 import numpy as np
 import torch
@@ -59,7 +61,16 @@ def _norm_loss(out: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
     return torch.linalg.vector_norm(out - target, dim=1).mean()
 
 
-LOSSES = {"mse": nn.functional.mse_loss, "l1": nn.functional.l1_loss, "norm": _norm_loss}
+LOSSES: dict[str, Callable[[torch.Tensor, torch.Tensor], torch.Tensor]] = {
+    "mse": nn.functional.mse_loss, "l1": nn.functional.l1_loss, "norm": _norm_loss}
+
+
+class _Best(TypedDict):
+    """The best validation so far (also saved into checkpoint.pt)."""
+
+    val_accuracy: float
+    val_loss: float
+    step: int
 
 
 def _tensors(part: Part) -> tuple[torch.Tensor, ...]:
@@ -136,7 +147,7 @@ def train_run(run: RunConfig, prepared: Prepared, run_dir: Path, name: str, prog
         augmenter = YawAugmenter(run.role, run.n_neighbors, run.n_obstacles, run.neighbor_dist)
         norms = [torch.as_tensor(np.asarray(v, dtype=np.float32)) for v in
                  (prepared.x_norm.mean, prepared.x_norm.scale, prepared.y_norm.mean, prepared.y_norm.scale)]
-    best = {"val_accuracy": -1.0, "val_loss": math.inf, "step": 0}
+    best: _Best = {"val_accuracy": -1.0, "val_loss": math.inf, "step": 0}
     recent: list[float] = []
     generator = torch.Generator().manual_seed(run.seed)
     order, position = None, n
