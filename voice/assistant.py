@@ -72,8 +72,8 @@ class Assistant:
                 self._to_confirm = None
                 return Outcome(text, understanding, Question("Cancelled: nothing was sent.", "cancelled"))
             if words & YES:
-                result, self._to_confirm = self._to_confirm, None
-                return self._send(Outcome(text, understanding, result))
+                command, self._to_confirm = self._to_confirm, None
+                return self._send(Outcome(text, understanding, command), command)
         if self._pending is not None and not understanding.of("action"):
             completed = f"{self._pending} {text}"
             understanding, result = parse(completed, self.uav_ids)
@@ -87,12 +87,13 @@ class Assistant:
             self._speak(result.text)
             return outcome
         self._pending = None
-        return self._send(outcome)
+        return self._send(outcome, result)
 
-    def _send(self, outcome: Outcome) -> Outcome:
+    def _send(self, outcome: Outcome, command: Command) -> Outcome:
+        """Send `command` (the outcome's result) unless this is a dry run; the reply goes into the outcome."""
         if self.send is not None:
             try:
-                outcome.reply = self.send(outcome.result)
+                outcome.reply = self.send(command)
             except BackendError as error:
                 outcome.error = str(error)
             if outcome.reply is not None:

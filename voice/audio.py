@@ -311,6 +311,7 @@ class VoiceActivityDetector:
     def _close(self, keep: int) -> np.ndarray | None:
         frames, first, last, start = self._utt, self._first_speech, self._last_speech, self._start_frame
         self._utt = None
+        assert frames is not None  # called only while an utterance is open
         if last + 1 - first < self.min_frames:
             return None
         self.segments.append(((start + first) * FRAME_SECONDS, (start + last + 1) * FRAME_SECONDS))

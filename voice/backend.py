@@ -96,7 +96,7 @@ class GroundStationClient:
         command for a UAV whose pose it has not heard yet. Asking it where they all are is the check.
         """
         deadline = time.monotonic() + timeout
-        where = Command("parameters", "get", "all", [Parameter("position", 0.0, "", "")])
+        where = Command("parameters", "get", "all", (Parameter("position", 0.0, "", ""),))
         while True:
             ids = self.uav_ids()
             if ids and self.send(where).accepted:

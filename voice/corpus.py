@@ -134,7 +134,7 @@ def labelled_sentences(uav_ids: Iterable[int] = DEFAULT_UAV_IDS, per_template: i
 def _every_phrase(slots: dict[str, list[str]]) -> list[str]:
     """Each phrase of each table, alone and after a UAV name, so none is missing from the model."""
     out = []
-    for table in (*vocab.all_phrases().values(), vocab.UNITS):
+    for table in vocab.phrase_tables():
         for phrase in spoken(table):
             out += [phrase, f"{slots['who'][0]} {phrase}"]
     return out

@@ -21,7 +21,7 @@ TYPO_CUTOFF = 0.8  # below this similarity a word is "not understood" rather tha
 @dataclass(frozen=True)
 class Entity:
     kind: str  # identity, action, direction, number, unit, parameter, algorithm, mission_component
-    value: object  # canonical value: "move", "up", 5.0, "uav_2", "all", ...
+    value: str | float  # canonical value: "move", "up", 5.0, "uav_2", "all", ... (a float for numbers only)
     confidence: float
     start: int  # token span [start, end)
     end: int
@@ -29,6 +29,18 @@ class Entity:
     role: str = ""  # identity: "agent" or "target" (the UAV to follow)
     factor: float = 1.0  # unit: multiply the number by this ...
     unit: str = ""  # ... to get it in this unit ("m", "deg")
+
+    @property
+    def text_value(self) -> str:
+        """The value of an entity of words: every kind but number."""
+        assert isinstance(self.value, str), f"a {self.kind} entity has the value {self.value!r}, not a text"
+        return self.value
+
+    @property
+    def number_value(self) -> float:
+        """The value of a number entity."""
+        assert isinstance(self.value, float), f"a {self.kind} entity has the value {self.value!r}, not a number"
+        return self.value
 
 
 @dataclass
@@ -64,7 +76,7 @@ _CONTRACTIONS = [(r"\bwhat's\b", "what is"), (r"\bwhere's\b", "where is"), (r"\b
 
 def _single_words() -> set[str]:
     words = set()
-    for table in (*vocab.all_phrases().values(), vocab.UNITS):
+    for table in vocab.phrase_tables():
         for phrase in table:
             words.update(phrase.split())
     for phrase in vocab.ALL_PHRASES:
@@ -116,8 +128,8 @@ def _phrase_index() -> dict[str, list[tuple[list[str], str, object]]]:
         for phrase, value in table.items():
             words = phrase.split()
             index.setdefault(words[0], []).append((words, kind, value))
-    for phrase, value in vocab.UNITS.items():
-        index.setdefault(phrase, []).append(([phrase], "unit", value))
+    for phrase, unit in vocab.UNITS.items():
+        index.setdefault(phrase, []).append(([phrase], "unit", unit))
     for phrase in vocab.ALL_PHRASES:
         words = phrase.split()
         index.setdefault(words[0], []).append((words, "identity", "all"))
@@ -189,9 +201,9 @@ class _Reader:
             if count is not None and k < len(words) and words[k] in vocab.UAV_NOUNS:
                 self.add("identity", "all", i, k + 1)
                 return k + 1
-        for phrase, kind, value in PHRASES.get(word, ()):
+        for phrase, kind, meaning in PHRASES.get(word, ()):
             if words[i:i + len(phrase)] == phrase:
-                return self.phrase(i, i + len(phrase), kind, value)
+                return self.phrase(i, i + len(phrase), kind, meaning)
         value, k = read_number(words, i)
         if value is not None:
             return self.number(i, k, value)
@@ -209,7 +221,8 @@ class _Reader:
             if self.words[end:end + 3] == ["and", "a", "half"]:  # "a meter and a half"
                 number = next((e for e in reversed(self.out.entities) if e.kind == "number" and e.end == i), None)
                 if number is not None:
-                    self.out.entities[self.out.entities.index(number)] = replace(number, value=number.value + 0.5)
+                    half_more = replace(number, value=number.number_value + 0.5)
+                    self.out.entities[self.out.entities.index(number)] = half_more
                     return end + 3
         elif kind == "action" and self.out.first("action") and " ".join(self.words[i:end]) in vocab.DIRECTIONS:
             # a second verb that is also a direction ("fly lower") is the direction

@@ -10,6 +10,7 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal
 
 from voice.interpret import Command, Question
 
@@ -22,7 +23,8 @@ TEST_UAV_IDS = (1, 2, 3)
 @dataclass(frozen=True)
 class Case:
     text: str
-    expect: dict | str  # {"intent", "action", "agent", "parameters": {name: number or text}} or "question"
+    # {"intent", "action", "agent", "parameters": {name: number or text}} or "question"
+    expect: dict | Literal["question"]
     where: str  # file:line, for messages
 
 
@@ -39,7 +41,7 @@ def load_cases(path: Path) -> list[Case]:
     return cases
 
 
-def matches(result: Command | Question, expect: dict | str) -> bool:
+def matches(result: Command | Question, expect: dict | Literal["question"]) -> bool:
     if expect == "question":
         return isinstance(result, Question)
     if not isinstance(result, Command):

@@ -83,6 +83,7 @@ def interpret(u: Understanding, uav_ids: Iterable[int] = ()) -> Command | Questi
         if isinstance(result, Command):
             return _confident(result)
         first_question = first_question or result
+    assert first_question is not None  # candidates is not empty, and each reading is a command or a question
     return first_question
 
 
@@ -113,9 +114,10 @@ def _candidate_actions(u: Understanding) -> list[tuple[str, Entity | None]]:
     mission verbs ("proceed forward seven meters" is a move), an action a noun implies (algorithm,
     battery), asking verbs; a yes/no question first of all."""
     actions = u.of("action")
-    mission = [(e.value, e) for e in actions if e.value in ("standby", "resume")]
-    weak = [(e.value, e) for e in actions if e.value == "get"]
-    out = [(e.value, e) for e in actions if e.value not in ("get", "standby", "resume")]
+    mission = [(e.text_value, e) for e in actions if e.value in ("standby", "resume")]
+    weak = [(e.text_value, e) for e in actions if e.value == "get"]
+    out: list[tuple[str, Entity | None]] = [(e.text_value, e) for e in actions
+                                             if e.value not in ("get", "standby", "resume")]
     implied = _implied_action(u)
     if implied in ("move", "turn") and not out:  # a bare number and unit: only beside no other verb
         out.append((implied, None))
@@ -145,7 +147,8 @@ def _main_action(u: Understanding) -> Entity | None:
     """The verb that commands; asking verbs only when there is no other ("tell drone one to land")."""
     actions = u.of("action")
     strong = [e for e in actions if e.value != "get"]
-    return (strong or actions or [None])[0]
+    found = strong or actions
+    return found[0] if found else None
 
 
 def _implied_action(u: Understanding) -> str | None:
@@ -168,12 +171,12 @@ def _agent(u: Understanding, action: str) -> tuple[str | None, list[Entity]]:
         return None, []
     values = {e.value for e in agents}
     if action == "follow" and len(values) == 2 and "all" not in values:  # "drone one, lock on to drone two"
-        return agents[0].value.removeprefix("uav_"), agents[:1]
+        return agents[0].text_value.removeprefix("uav_"), agents[:1]
     if "all" in values:
         return "all", agents
     if len(values) > 1:
         return None, []
-    return agents[0].value.removeprefix("uav_"), agents
+    return agents[0].text_value.removeprefix("uav_"), agents
 
 
 # --- the numbers ----------------------------------------------------------------------------------
@@ -183,7 +186,7 @@ def _quantities(u: Understanding) -> list[tuple[float, Entity, Entity | None]]:
     out = []
     for number in u.of("number"):
         unit = units.get(number.end)
-        value = number.value * (unit.factor if unit else 1.0)
+        value = number.number_value * (unit.factor if unit else 1.0)
         out.append((round(value, 6), number, unit))
     return out
 

@@ -34,6 +34,7 @@ def _below_hundred(tokens: list[str], i: int) -> tuple[int | None, int]:
 def _integer(tokens: list[str], i: int) -> tuple[int | None, int]:
     """An integer in words up to the thousands: "a hundred and twenty", "two thousand five hundred"."""
     total, j, seen = 0, i, False
+    count: int | None
     for scale in ("thousand", "hundred"):
         k = j
         if k < len(tokens) and tokens[k] == "a" and k + 1 < len(tokens) and tokens[k + 1] == scale:

@@ -7,6 +7,7 @@ them (voice.corpus), so adding a synonym here teaches both the parser and the re
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 
 # Canonical actions are the ground station's (magna_msgs/GroundStationCommand.action).
 ACTIONS = {
@@ -117,3 +118,8 @@ def all_phrases() -> dict[str, dict[str, str]]:
     """Every table by entity name, for the parser and the corpus."""
     return {"action": ACTIONS, "direction": DIRECTIONS, "parameter": PARAMETERS, "algorithm": ALGORITHMS,
             "mission_component": MISSION_COMPONENTS}
+
+
+def phrase_tables() -> list[Mapping[str, object]]:
+    """Every table, units included, for what needs only the phrases (phrase -> value)."""
+    return [*all_phrases().values(), UNITS]
