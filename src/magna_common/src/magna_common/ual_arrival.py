@@ -15,11 +15,13 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
+import numpy as np
+
 PROGRESS_STEP = 0.05  # m nearer than the best so far that counts as progress
 
 
 class Arrival:
-    def __init__(self, target: Sequence[float], yaw: float | None, now: float, radius: float = 0.165,
+    def __init__(self, target: Sequence[float] | np.ndarray, yaw: float | None, now: float, radius: float = 0.165,
                  yaw_tolerance: float = 0.325, hold_time: float = 1.0, stuck_time: float = 10.0,
                  time_unit: str = "s"):
         self.target = tuple(float(c) for c in target)
@@ -36,7 +38,7 @@ class Arrival:
         self._best_time = now
         self._nearest = math.inf
 
-    def update(self, position: Sequence[float], yaw: float, now: float) -> None:
+    def update(self, position: Sequence[float] | np.ndarray, yaw: float, now: float) -> None:
         if self.arrived or self.stuck:
             return
         # Plain floats: a simulator calls this every physics step of every UAV flying to a target.
