@@ -84,7 +84,9 @@ class BatteryModel:
         if flying and self.flying_power is not None:
             power = self.flying_power(speed, climb_rate)
         elif flying:
-            power = self.spec.hover_power_w * (1.0 + SPEED_POWER_FACTOR * speed * speed)
+            hover_power = self.spec.hover_power_w
+            assert hover_power is not None  # __init__ refuses a battery with neither it nor a flying_power model
+            power = hover_power * (1.0 + SPEED_POWER_FACTOR * speed * speed)
         else:
             power = self.spec.idle_power_w
         if self.depleted:

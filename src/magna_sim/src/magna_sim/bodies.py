@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import pybullet as p
 
-from magna_common.airframes import Airframe
+from magna_common.airframes import Airframe, AirframeError
 
 GROUND_NAME = "ground"
 
@@ -23,6 +23,9 @@ def create_ground(client: int) -> int:
 def create_uav_body(client: int, airframe: Airframe, position, orientation_xyzw,
                     rgba=(0.2, 0.2, 0.25, 1.0)) -> int:
     body = airframe.body
+    if body is None:
+        raise AirframeError(f"{airframe.source}: 'body': missing; a UAV's body takes its size, mass and inertia "
+                            "from it")
     half = [0.0, 0.0, body.height / 2.0]
     shape = p.createCollisionShape(p.GEOM_CYLINDER, radius=body.radius, height=body.height,
                                    collisionFramePosition=half, physicsClientId=client)

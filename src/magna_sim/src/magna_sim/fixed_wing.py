@@ -34,6 +34,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 import pybullet as p
@@ -81,18 +82,24 @@ def max_turn_rate(fw: FixedWing, horizontal_speed: float) -> float:
 
 def flying_power(airframe: Airframe) -> Callable[[float, float], float]:
     """Electrical power (W) drawn in flight at (airspeed m/s, climb rate m/s)."""
-    fw, battery, mass = airframe.fixed_wing, airframe.battery, airframe.body.mass
+    fw, battery, body = airframe.fixed_wing, airframe.battery, airframe.body
+    if fw is None or body is None or battery is None or battery.cruise_power_w is None:
+        raise AirframeError(f"{airframe.source}: a fixed wing's flying power needs its body, fixed_wing and "
+                            "battery blocks, with battery.cruise_power_w")
+    min_speed, cruise_speed, mass = fw.min_speed, fw.cruise_speed, body.mass
+    cruise_power, idle_power = battery.cruise_power_w, battery.idle_power_w
 
     def power(speed: float, climb_rate: float) -> float:
-        ratio = max(speed, fw.min_speed) / fw.cruise_speed  # on the ground the motor still pulls as in flight
-        level = battery.cruise_power_w * 0.5 * (ratio ** 3 + 1.0 / ratio)
-        return max(battery.idle_power_w, level + mass * GRAVITY * climb_rate / PROPULSIVE_EFFICIENCY)
+        ratio = max(speed, min_speed) / cruise_speed  # on the ground the motor still pulls as in flight
+        level = cruise_power * 0.5 * (ratio ** 3 + 1.0 / ratio)
+        return max(idle_power, level + mass * GRAVITY * climb_rate / PROPULSIVE_EFFICIENCY)
 
     return power
 
 
 @dataclass
 class _PlaneState:
+    wing: FixedWing  # the airframe's fixed_wing block
     speed: float = 0.0  # m/s along the flight path (airspeed; no wind)
     turn_rate: float = 0.0  # rad/s
     climb: float = 0.0  # m/s
@@ -105,7 +112,7 @@ class _PlaneState:
 
 class FixedWingModel:
     name = "fixed_wing"
-    follows_guidance = False  # a plane flies its setpoints itself (see the module docstring)
+    follows_guidance: Literal[False] = False  # a plane flies its setpoints itself (see the module docstring)
 
     def __init__(self, client: int, physics_dt: float):
         self.client = client
@@ -117,7 +124,7 @@ class FixedWingModel:
         if frame.fixed_wing is None:
             raise AirframeError(f"{frame.source}: 'fixed_wing': missing; the fixed_wing flight model flies fixed "
                                 f"wings only, use the light or dynamic model for '{frame.model}'")
-        self._states[vehicle] = _PlaneState()
+        self._states[vehicle] = _PlaneState(frame.fixed_wing)
 
     def detach(self, vehicle: Vehicle) -> None:
         self._states.pop(vehicle, None)
@@ -126,7 +133,7 @@ class FixedWingModel:
         """The plane's own state (airspeed, turn rate, climb), for tests and batteries."""
         return self._states[vehicle]
 
-    def apply_controls(self, vehicles: Sequence[Vehicle], velocity_commands=None, yaw_rate_commands=None) -> None:
+    def apply_controls(self, vehicles: Sequence[Vehicle]) -> None:
         for vehicle in vehicles:
             self._fly(vehicle, self._states[vehicle])
 
@@ -135,7 +142,7 @@ class FixedWingModel:
 
     # --- one plane, one step ----------------------------------------------------------------------------------
     def _fly(self, vehicle: Vehicle, st: _PlaneState) -> None:
-        fw, setpoint, dt = vehicle.airframe.fixed_wing, vehicle.setpoint, self.dt
+        fw, setpoint, dt = st.wing, vehicle.setpoint, self.dt
         if setpoint is not st.setpoint:
             self._new_setpoint(vehicle, st, setpoint)
         position = vehicle.position.copy()
@@ -179,7 +186,7 @@ class FixedWingModel:
         if (previous is not None and previous.mode == setpoint.mode and previous.manoeuvre == setpoint.manoeuvre
                 and np.array_equal(previous.position, setpoint.position)):
             return  # the same order sent again (commanders repeat waypoints and holds): keep the manoeuvre going
-        fw, heading = vehicle.airframe.fixed_wing, vehicle.yaw
+        fw, heading = st.wing, vehicle.yaw
         st.course, st.climbed_out, st.on_final = heading, False, False
         if setpoint.manoeuvre == Manoeuvre.TAKE_OFF:
             st.speed = max(st.speed, fw.min_speed)  # launched (hand or catapult)
@@ -201,6 +208,7 @@ class FixedWingModel:
         if setpoint.manoeuvre == Manoeuvre.LAND:
             final = final_approach_height(fw)
             if not st.on_final and position[2] > final + CLIMB_OUT_DONE:
+                assert st.centre is not None  # _new_setpoint placed the spiral when this LAND setpoint came
                 course, feedforward = self._loiter(vehicle, fw, st.centre)
                 return course, fw.cruise_speed, -ALTITUDE_GAIN * (position[2] - final), feedforward
             if not st.on_final:

@@ -11,6 +11,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from magna_common.airframes import Airframe, AirframeError, Limits
+
 from .vehicle import SetpointMode, Vehicle
 
 POSITION_GAIN = 1.0  # 1/s: with the light model's 0.3 s lag this is close to critically damped
@@ -21,18 +23,25 @@ def wrap_angle(angle):
     return (np.asarray(angle) + np.pi) % (2.0 * np.pi) - np.pi
 
 
+def airframe_limits(airframe: Airframe) -> Limits:
+    """The airframe's speed limits, which a multirotor is flown with (its flight models refuse it without them)."""
+    if airframe.limits is None:
+        raise AirframeError(f"{airframe.source}: 'limits': missing; a multirotor is flown within its speed limits")
+    return airframe.limits
+
+
 class _GroupLimits:
     """The airframe limits of one group of vehicles, as arrays."""
 
     def __init__(self, vehicles: Sequence[Vehicle]):
-        limits = [v.airframe.limits for v in vehicles]
+        limits = [airframe_limits(v.airframe) for v in vehicles]
         self.max_xy = np.array([lim.max_horizontal_speed for lim in limits])
         self.max_z = np.array([lim.max_vertical_speed for lim in limits])
         self.max_yaw_rate = np.array([lim.max_yaw_rate for lim in limits])
 
 
 # Built once per group of airframes: gathering them every step would cost more than the maths.
-_limits_cache: dict[tuple, _GroupLimits] = {}
+_limits_cache: dict[tuple[int, ...], _GroupLimits] = {}
 
 
 def _group_limits(vehicles: Sequence[Vehicle]) -> _GroupLimits:

@@ -8,21 +8,23 @@ The ground is a floor: a light UAV never sinks below z = 0.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Literal
 
 import numpy as np
 import pybullet as p
 
+from .guidance import airframe_limits
 from .vehicle import Vehicle
 
 
 class LightModel:
     name = "light"
-    follows_guidance = True
+    follows_guidance: Literal[True] = True
 
     def __init__(self, client: int, physics_dt: float):
         self.client = client
         self.dt = physics_dt
-        self._blend_key: tuple = ()
+        self._blend_key: tuple[int, ...] = ()
         self._blend_value = np.zeros(0)
 
     def attach(self, vehicle: Vehicle) -> None:
@@ -62,7 +64,7 @@ class LightModel:
         """Per-step weight of the first-order lag, cached while the group stays the same."""
         key = tuple(id(v.airframe) for v in vehicles)
         if key != self._blend_key:
-            tau = np.array([v.airframe.limits.velocity_time_constant for v in vehicles])
+            tau = np.array([airframe_limits(v.airframe).velocity_time_constant for v in vehicles])
             self._blend_value = 1.0 - np.exp(-self.dt / np.maximum(tau, 1e-6))
             self._blend_key = key
         return self._blend_value

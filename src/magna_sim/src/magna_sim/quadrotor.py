@@ -22,11 +22,12 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
 import pybullet as p
 
-from magna_common.airframes import Airframe, AirframeError
+from magna_common.airframes import Airframe, AirframeError, Body, Limits, Propulsion
 from magna_sim.vehicle import Vehicle
 
 GRAVITY = 9.81  # m/s^2, the world's gravity
@@ -64,22 +65,27 @@ def allocation_matrix(rotors: int, arm_length: float, torque_to_thrust: float) -
     return np.vstack([np.ones(rotors), y, -x, spin * torque_to_thrust])
 
 
-def _check_multirotor(airframe: Airframe) -> None:
+def _multirotor_blocks(airframe: Airframe) -> tuple[Body, Propulsion, Limits]:
+    """The blocks the dynamic model flies a multirotor with; AirframeError unless they make one it can fly."""
     airframe.require_physics()
-    rotors = airframe.body.rotors
+    body, prop, limits = airframe.body, airframe.propulsion, airframe.limits
+    assert body is not None  # require_physics: every kind of airframe has one
+    rotors = body.rotors
     if rotors == 0:
         raise AirframeError(f"{airframe.source}: 'body.rotors': 0 (a fixed wing); the dynamic flight model "
                             f"flies multirotors only, use the fixed_wing model for '{airframe.model}'")
     if rotors < 4 or rotors % 2:
         raise AirframeError(f"{airframe.source}: 'body.rotors': {rotors}; the dynamic flight model needs an even "
                             f"number of rotors, 4 or more (alternate spin directions cancel the yaw torque)")
-    if airframe.body.arm_length <= 0 or airframe.propulsion.torque_to_thrust <= 0:
+    assert prop is not None and limits is not None  # require_physics: a multirotor has both
+    if body.arm_length <= 0 or prop.torque_to_thrust <= 0:
         raise AirframeError(f"{airframe.source}: 'body.arm_length' and 'propulsion.torque_to_thrust' must be "
                             f"positive for a multirotor")
-    hover = airframe.body.mass * GRAVITY
-    if rotors * airframe.propulsion.max_rotor_thrust <= hover:
+    hover = body.mass * GRAVITY
+    if rotors * prop.max_rotor_thrust <= hover:
         raise AirframeError(f"{airframe.source}: 'propulsion.max_rotor_thrust': {rotors} rotors of "
-                            f"{airframe.propulsion.max_rotor_thrust} N cannot lift {hover:.3g} N")
+                            f"{prop.max_rotor_thrust} N cannot lift {hover:.3g} N")
+    return body, prop, limits
 
 
 @dataclass
@@ -171,7 +177,7 @@ class QuadrotorModel:
     """Multirotor rigid-body flight through rotor forces (4, 6, ... rotors); see the module docstring."""
 
     name = "dynamic"
-    follows_guidance = True
+    follows_guidance: Literal[True] = True
 
     def __init__(self, client: int, physics_dt: float, rng: np.random.Generator | None = None,
                  wind_std: float = 0.0):
@@ -190,9 +196,7 @@ class QuadrotorModel:
     # -- FlightModel ---------------------------------------------------------------------------------
 
     def attach(self, vehicle: Vehicle) -> None:
-        af = vehicle.airframe
-        _check_multirotor(af)
-        body, prop, limits = af.body, af.propulsion, af.limits
+        body, prop, limits = _multirotor_blocks(vehicle.airframe)
         inertia = np.array(body.inertia, dtype=float)
         allocation = allocation_matrix(body.rotors, body.arm_length, prop.torque_to_thrust)
         # Torque authority at hover: every rotor may move by the smaller of its hover thrust and its headroom.
@@ -256,10 +260,8 @@ class QuadrotorModel:
         c = self.client
         poses = [p.getBasePositionAndOrientation(v.body_id, physicsClientId=c) for v in vehicles]
         twists = [p.getBaseVelocity(v.body_id, physicsClientId=c) for v in vehicles]
-        positions, quaternions = zip(*poses, strict=True)
-        velocities, rates = zip(*twists, strict=True)
-        positions, quaternions = np.array(positions), np.array(quaternions)
-        velocities, rates = np.array(velocities), np.array(rates)
+        positions, quaternions = map(np.array, zip(*poses, strict=True))
+        velocities, rates = map(np.array, zip(*twists, strict=True))
         x, y, z, w = quaternions.T
         yaws = np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z)).tolist()  # once for all
         for i, v in enumerate(vehicles):

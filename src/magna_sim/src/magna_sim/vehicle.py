@@ -8,7 +8,8 @@ A flight model moves a group of vehicles of its kind each physics step:
     model.read_state(vehicles)                                           # after stepSimulation
 
 `guidance.velocity_commands` turns setpoints into the velocity and yaw-rate
-commands for every vehicle at once, so both models track the same references.
+commands for every vehicle at once, so both multirotor models track the same
+references. A fixed wing flies its setpoints itself: `model.apply_controls(vehicles)`.
 """
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ import enum
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import Literal, Protocol, TypeAlias
 
 import numpy as np
 
@@ -90,14 +91,8 @@ class Vehicle:
         return self.setpoint.mode != SetpointMode.OFF
 
 
-class FlightModel(Protocol):
-    """What the world needs from a flight model (light.LightModel, quadrotor.QuadrotorModel,
-    fixed_wing.FixedWingModel)."""
-
+class _FlightModelBase(Protocol):
     name: str
-    # True: the world hands it guidance.velocity_commands; False: it flies the setpoints itself
-    # (a fixed wing cannot follow a multirotor's velocity reference) and ignores those arguments.
-    follows_guidance: bool
 
     def attach(self, vehicle: Vehicle) -> None:
         """Called once after the world created the vehicle's body."""
@@ -105,9 +100,29 @@ class FlightModel(Protocol):
     def detach(self, vehicle: Vehicle) -> None:
         """Called before the world removes the vehicle's body."""
 
+    def read_state(self, vehicles: Sequence[Vehicle]) -> None:
+        """After a physics step: refresh each vehicle's pose and twist from what happened."""
+
+
+class GuidedFlightModel(_FlightModelBase, Protocol):
+    """A model the world hands guidance.velocity_commands (light.LightModel, quadrotor.QuadrotorModel)."""
+
+    follows_guidance: Literal[True]
+
     def apply_controls(self, vehicles: Sequence[Vehicle], velocity_commands: np.ndarray,
                        yaw_rate_commands: np.ndarray) -> None:
         """Before a physics step: move or push every vehicle toward its commands (N x 3, N)."""
 
-    def read_state(self, vehicles: Sequence[Vehicle]) -> None:
-        """After a physics step: refresh each vehicle's pose and twist from what happened."""
+
+class SelfGuidedFlightModel(_FlightModelBase, Protocol):
+    """A model that flies the setpoints itself (fixed_wing.FixedWingModel: a fixed wing cannot follow a
+    multirotor's velocity reference)."""
+
+    follows_guidance: Literal[False]
+
+    def apply_controls(self, vehicles: Sequence[Vehicle]) -> None:
+        """Before a physics step: move every vehicle toward its setpoint."""
+
+
+# What the world needs from a flight model; `follows_guidance` tells the two kinds apart.
+FlightModel: TypeAlias = GuidedFlightModel | SelfGuidedFlightModel

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 import pybullet as p
 
-from magna_common.airframes import AirframeError, available_models, load_airframe
+from magna_common.airframes import Airframe, AirframeError, available_models, load_airframe
 
 from . import bodies, fixed_wing, guidance, shapes
 from .battery import BatteryModel
@@ -22,7 +22,7 @@ from .fixed_wing import FixedWingModel
 from .light import LightModel
 from .quadrotor import QuadrotorModel
 from .ual_logic import UalLogic, UalSettings, UalState
-from .vehicle import Vehicle
+from .vehicle import FlightModel, Vehicle
 
 FLIGHT_MODELS = ("light", "dynamic", "fixed_wing")
 
@@ -68,9 +68,10 @@ class SimWorld:
         self.ground_impact_speed = ground_impact_speed
         self.battery_floor = battery_floor  # fraction of charge batteries keep (PX4 SITL's SIM_BAT_MIN_PCT)
         self.ual_settings = ual_settings
-        self.models = {"light": LightModel(self.client, self.dt),
-                       "dynamic": QuadrotorModel(self.client, self.dt, rng=self.rng, wind_std=wind_std),
-                       "fixed_wing": FixedWingModel(self.client, self.dt)}
+        self.models: dict[str, FlightModel] = {
+            "light": LightModel(self.client, self.dt),
+            "dynamic": QuadrotorModel(self.client, self.dt, rng=self.rng, wind_std=wind_std),
+            "fixed_wing": FixedWingModel(self.client, self.dt)}
         self.vehicles: dict[int, Vehicle] = {}  # by UAL id
         self.ual: dict[int, UalLogic] = {}
         self.batteries: dict[int, BatteryModel] = {}
@@ -105,15 +106,16 @@ class SimWorld:
         except AirframeError as err:
             raise SpawnError(f"airframe: {err}; known: {', '.join(available_models())}") from None
         flight_model = _flight_model_for(airframe, frame, flight_model)
-        position = _finite("pose.position", position)
+        start = _finite("pose.position", position)
         _finite("pose.orientation (yaw)", [yaw], size=1)
         orientation = np.array([0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)])
-        body_id = bodies.create_uav_body(self.client, frame, position, orientation, rgba)
+        body_id = bodies.create_uav_body(self.client, frame, start, orientation, rgba)
         vehicle = Vehicle(name=name, uav_id=uav_id, airframe=frame, flight_model=flight_model, body_id=body_id,
-                          position=position.copy(), orientation=orientation)
+                          position=start.copy(), orientation=orientation)
         self.models[flight_model].attach(vehicle)
         self.vehicles[uav_id] = vehicle
         self.ual[uav_id] = UalLogic(vehicle, self.ual_settings)
+        assert frame.battery is not None  # require_physics above: every kind of airframe has one
         self.batteries[uav_id] = BatteryModel(
             frame.battery, flying_power=fixed_wing.flying_power(frame) if frame.is_fixed_wing else None,
             floor_fraction=self.battery_floor)
@@ -160,7 +162,7 @@ class SimWorld:
             if model.follows_guidance:
                 model.apply_controls(group, *guidance.velocity_commands(group))
             else:
-                model.apply_controls(group, None, None)
+                model.apply_controls(group)
         p.stepSimulation(physicsClientId=self.client)
         self.steps += 1
         for model, group in groups:
@@ -230,7 +232,7 @@ class SimWorld:
         self._touching = {pair for pair in self._touching if body_id not in pair}
 
 
-def _flight_model_for(airframe: str, frame, asked: str) -> str:
+def _flight_model_for(airframe: str, frame: Airframe, asked: str) -> str:
     """The model that flies `frame`: a fixed wing always flies fixed_wing ("light", the default every
     spawner sends, means "the kinematic model of this airframe"); a multirotor never does."""
     if frame.is_fixed_wing:
@@ -239,6 +241,7 @@ def _flight_model_for(airframe: str, frame, asked: str) -> str:
                              "fly it with the fixed_wing model (or light, which picks it for a fixed wing)")
         return "fixed_wing"
     if asked == "fixed_wing":
+        assert frame.body is not None  # the caller's require_physics: every kind of airframe has one
         raise SpawnError(f"flight_model: '{airframe}' is a multirotor ({frame.source}: body.rotors = "
                          f"{frame.body.rotors}); fixed_wing flies airframes with a fixed_wing block, "
                          "use light or dynamic")
