@@ -23,15 +23,15 @@ class LoopStopped(RuntimeError):
 class _Ticket:
     __slots__ = ("fn", "done", "result", "error")
 
-    def __init__(self, fn):
+    def __init__(self, fn: Callable[[], Any]) -> None:
         self.fn = fn
         self.done = threading.Event()
-        self.result = None
+        self.result: Any = None
         self.error: BaseException | None = None
 
 
 class CommandQueue:
-    def __init__(self):
+    def __init__(self) -> None:
         self._jobs: collections.deque[_Ticket] = collections.deque()
         self._waiters: list[_Ticket] = []
         self._waiters_lock = threading.Lock()

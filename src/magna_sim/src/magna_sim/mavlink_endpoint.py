@@ -50,9 +50,9 @@ class MavlinkEndpoint:
     def closed(self) -> bool:
         return self._socket.fileno() < 0
 
-    def receive(self) -> list:
+    def receive(self) -> list[mavlink.MAVLink_message]:
         """Every message waiting on the socket (never blocks)."""
-        messages = []
+        messages: list[mavlink.MAVLink_message] = []
         while True:
             try:
                 data, address = self._socket.recvfrom(MAX_DATAGRAM)

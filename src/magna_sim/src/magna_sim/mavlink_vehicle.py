@@ -28,7 +28,7 @@ from pymavlink.dialects.v20 import common as mavlink
 
 from magna_mavlink import autopilot, frames
 
-from .guidance import POSITION_GAIN, YAW_GAIN
+from .guidance import POSITION_GAIN, YAW_GAIN, airframe_limits
 from .mavlink_params import ParamError, ParamTable, default_params, encode
 from .mavlink_telemetry import PX4_SITL_HOME, Streams, Telemetry, VehicleStatus
 from .ual_logic import UalLogic, UalState
@@ -98,7 +98,7 @@ class MavlinkVehicle:
         self.system_id = system_id
         self.ual = ual
         self.telemetry = Telemetry(vehicle, system_id, origin_geo, boot_time=now)
-        limits = vehicle.airframe.limits
+        limits = airframe_limits(vehicle.airframe)
         self.params = ParamTable(default_params(system_id, limits.max_horizontal_speed, limits.max_vertical_speed))
         self.streams = Streams(now, battery=battery is not None)
         self._battery = battery
@@ -198,12 +198,13 @@ class MavlinkVehicle:
             self._write_off()
             return
         if self.mode == "OFFBOARD":
-            if now - self._last_setpoint > self.params["COM_OF_LOSS_T"]:
+            target = self._target  # None: no set-point ever came, so none came lately either
+            if target is None or now - self._last_setpoint > self.params["COM_OF_LOSS_T"]:
                 self._say(mavlink.MAV_SEVERITY_CRITICAL, f"Offboard set-points lost for "
                                                          f"{self.params['COM_OF_LOSS_T']:g} s: holding")
                 self._hold_here()
             else:
-                self._follow_target()
+                self._follow_target(target)
                 return
         if self.mode == "AUTO.TAKEOFF" and self.vehicle.position[2] >= self._takeoff_z - TAKEOFF_ACCEPTANCE:
             position = self.vehicle.position.copy()
@@ -213,9 +214,9 @@ class MavlinkVehicle:
         if self.on_ground and self.mode != "AUTO.TAKEOFF":
             self._write_off()  # idle on the ground until told to climb
 
-    def _follow_target(self) -> None:
+    def _follow_target(self, target: OffboardTarget) -> None:
         """OFFBOARD: track the latest set-point. Axes without a position follow their velocity (0 when unset)."""
-        target, setpoint = self._target, self._own
+        setpoint = self._own
         if target.is_position:
             return  # a POSITION setpoint, written when the set-point arrived
         vehicle = self.vehicle
@@ -335,13 +336,12 @@ class MavlinkVehicle:
         self._still_since = None
         self._set_mode("AUTO.LAND")
 
-    def _start_offboard(self) -> None:
+    def _start_offboard(self, target: OffboardTarget) -> None:
         self._set_mode("OFFBOARD")
-        self._apply_target()
+        self._apply_target(target)
 
-    def _apply_target(self) -> None:
+    def _apply_target(self, target: OffboardTarget) -> None:
         """Write the setpoint for the latest OFFBOARD set-point (velocity ones are refreshed every tick)."""
-        target = self._target
         if not self.armed:
             return
         if target.is_position:
@@ -349,7 +349,7 @@ class MavlinkVehicle:
         else:
             if self._own.mode != SetpointMode.VELOCITY or self.vehicle.setpoint is not self._own:
                 self._write(Setpoint(SetpointMode.VELOCITY))
-            self._follow_target()
+            self._follow_target(target)
 
     def _arm(self) -> int:
         if self.armed:
@@ -364,7 +364,7 @@ class MavlinkVehicle:
         if self.mode in ("AUTO.LAND", "AUTO.TAKEOFF"):  # a finished landing or take-off: wait for orders
             self._set_mode("AUTO.LOITER")
         if self.mode == "OFFBOARD" and self._target is not None:
-            self._apply_target()
+            self._apply_target(self._target)
         self._outbox.append(self.telemetry.home_position(self._now, self.status()))
         self._say(mavlink.MAV_SEVERITY_INFO, "Armed by external command")
         return ACCEPTED
@@ -449,7 +449,7 @@ class MavlinkVehicle:
                 self._say(mavlink.MAV_SEVERITY_CRITICAL, "Switching to OFFBOARD denied: no set-points")
                 return REJECTED
             self._take_control()
-            self._start_offboard()
+            self._start_offboard(self._target)
         elif mode in HOLD_MODES:
             self._take_control()
             self._hold_here(mode)
@@ -574,7 +574,7 @@ class MavlinkVehicle:
         self._target = OffboardTarget(position, velocity, yaw, yaw_rate)
         self._last_setpoint = self._now
         if self.mode == "OFFBOARD" and not self.external:
-            self._apply_target()
+            self._apply_target(self._target)
 
     # --- parameters and the mission protocol -----------------------------------------------------------------
     def _on_param_request_list(self, msg) -> None:

@@ -366,6 +366,7 @@ class SimNode:
                 self._offboard_lockstep.forget(uav_id)
         if uav_id in self._step_subs:
             self._step_subs.pop(uav_id).unregister()
+            assert self.lockstep is not None  # control steps are listened to only for the lockstep
             self.lockstep.forget(uav_id)
         if uav_id not in self.servers:
             return  # MAVLink only: it had no UAL server and was never in /ual_ids
@@ -413,6 +414,7 @@ class SimNode:
                                                  lambda: f"deleted {self.delete(req.name)} '{req.name}'"))
 
     def _on_control_step(self, msg: Float64, uav_id: int) -> None:
+        assert self.lockstep is not None  # subscribed only for the lockstep
         self.lockstep.heard(uav_id, msg.data)
         self._step_heard.set()
 
@@ -480,22 +482,23 @@ class SimNode:
 
     def _behind_a_controller(self) -> bool:
         """Wait a little (up to 10 ms) while a UAV manager has not caught up with the next physics step."""
-        if self.lockstep is None:
+        lockstep, offboard = self.lockstep, self._offboard_lockstep
+        if lockstep is None or offboard is None:  # both exist (settings.lockstep) or neither
             return False
         self._step_heard.clear()  # before looking: a step heard after the look still ends the wait
         next_time = self.world.time + self.world.dt
-        holding = self.lockstep.holds(next_time)
-        if self.lockstep.let_go:
-            ids, self.lockstep.let_go = self.lockstep.let_go, []
+        holding = lockstep.holds(next_time)
+        if lockstep.let_go:
+            ids, lockstep.let_go = lockstep.let_go, []
             rospy.logwarn(f"magna_sim: the UAV manager(s) of UAV {', '.join(map(str, ids))} went silent for "
-                          f"{self.lockstep.timeout:g} wall s while flying; the simulation goes on without "
+                          f"{lockstep.timeout:g} wall s while flying; the simulation goes on without "
                           f"waiting for them")
-        if self.mavlink and self._offboard_lockstep.holds(next_time):
+        if self.mavlink and offboard.holds(next_time):
             holding = True
-        if self._offboard_lockstep.let_go:
-            ids, self._offboard_lockstep.let_go = self._offboard_lockstep.let_go, []
+        if offboard.let_go:
+            ids, offboard.let_go = offboard.let_go, []
             rospy.loginfo(f"magna_sim: the OFFBOARD set-points of MAVLink UAV {', '.join(map(str, ids))} stopped "
-                          f"for {self.lockstep.timeout:g} wall s; the simulation goes on without waiting for them")
+                          f"for {lockstep.timeout:g} wall s; the simulation goes on without waiting for them")
         if holding:
             self._step_heard.wait(0.01)
         return holding
@@ -599,6 +602,7 @@ class SimNode:
 
     def _publish_depth(self, stamp) -> None:
         camera = self._camera
+        assert camera is not None  # spin publishes depth images only with a camera
         for uav_id, (image_pub, info_pub) in self.cameras.items():
             if image_pub.get_num_connections() == 0 and info_pub.get_num_connections() == 0:
                 continue  # rendering is the costly part: skip it when nobody looks
