@@ -8,6 +8,9 @@ The layers are declared in pyproject.toml, `[tool.magna.layers]`: a package may 
 of lower layers. Every import counts, also one inside a function (a lazy import still ties the
 packages together). Tests are not checked: a package's tests may drive the layers above it.
 
+A message package (no Python of ours, only generated message types) may also be imported from its own
+layer: it imports nothing of ours, so it closes no circle.
+
 Three more rules are checked:
 - a catkin package's package.xml declares (depend/exec_depend) exactly the MAGNA packages it imports;
 - no two modules of one package import each other, directly or around a circle;
@@ -49,6 +52,13 @@ class Graph:
             if imp.source != imp.target:
                 found[(imp.source, imp.target)].append(imp)
         return dict(found)
+
+    def is_messages(self, package: str) -> bool:
+        """A message package: no Python of ours, only the generated message and service types."""
+        return not (self.packages[package] / "__init__.py").exists()
+
+    def breaks_layers(self, source: str, target: str, level: dict[str, int]) -> bool:
+        return level[target] > level[source] or level[target] == level[source] and not self.is_messages(target)
 
 
 def declared_layers(pyproject: Path = ROOT / "pyproject.toml") -> list[list[str]]:
@@ -133,7 +143,7 @@ def layer_problems(graph: Graph, layers: list[list[str]]) -> list[str]:
     for (source, target), imports in sorted(graph.edges().items()):
         if source not in level or target not in level:
             continue
-        if level[target] >= level[source]:
+        if graph.breaks_layers(source, target, level):
             direction = "sideways" if level[target] == level[source] else "up"
             for imp in {imp.where: imp for imp in reversed(imports)}.values():  # one line per import statement
                 problems.append(f"{imp.where}: {source} imports {imp.imported}, {direction} in the layers "
@@ -249,8 +259,8 @@ def dot(graph: Graph, layers: list[list[str]]) -> str:
         present = [p for p in layer if p in graph.packages]
         lines.append(f'  {{ rank=same; {" ".join(present)} }}  // layer {n}')
     for (source, target), imports in sorted(graph.edges().items()):
-        bad = level.get(target, -1) >= level.get(source, 99)
-        messages = not (graph.packages[target] / "__init__.py").exists()
+        bad = source in level and target in level and graph.breaks_layers(source, target, level)
+        messages = graph.is_messages(target)
         style = ' [color="#c62828", penwidth=2]' if bad else ' [color="#cccccc"]' if messages else ""
         lines.append(f"  {source} -> {target}{style};  // {len(imports)} import(s)")
     lines.append("}")

@@ -72,6 +72,14 @@ def test_an_import_sideways_is_caught(workspace):
     assert any("mid_a imports mid_b.other, sideways in the layers" in p for p in problems)
 
 
+def test_a_message_package_may_be_imported_from_its_own_layer(workspace):
+    (workspace / "src/low_msgs").mkdir()  # generated message types only: no Python of ours
+    (workspace / "src/low_msgs/package.xml").write_text('<package format="3">\n  <name>low_msgs</name>\n</package>\n')
+    (workspace / "pyproject.toml").write_text(LAYERS.replace('["low_pkg"]', '["low_pkg", "low_msgs"]'))
+    (workspace / "src/low_pkg/src/low_pkg/tools.py").write_text("from low_msgs.msg import Point\n\nX = 1\n")
+    assert graph_checker.check(workspace) == []
+
+
 def test_a_dependency_declared_but_never_imported_is_caught(workspace):
     _package(workspace, "unused_dep", {})
     (workspace / "pyproject.toml").write_text(LAYERS.replace('["low_pkg"]', '["low_pkg", "unused_dep"]'))

@@ -1,11 +1,12 @@
 """ual_mavlink's ROS side: the GRVC UAL v3 API of one MAVLink UAV under /uav_{id}/ual/, as magna_sim serves it.
 
-Same topics, services, frame ids and refusals as magna_sim's UAL server, so a client cannot tell them
-apart: pose, velocity and odom in `map` (odom's twist in the body, child frame uav_{id}/base_link),
-set_pose and go_to_waypoint in `map` or `uav_{id}_home`, set_velocity in `map`; a refused command
-fails its service call with the reason. Also /uav_{id}/mavros/battery (sensor_msgs/BatteryState,
-from SYS_STATUS, as MAGNA's UAV managers read it), tf map -> uav_{id}/base_link, and the latched
-/uav_{id}/ual_mavlink/link (std_msgs/String: "" or what is wrong with the link).
+Same topics, services, frame ids and refusals as magna_sim's UAL server (both declare the API through
+magna_common.ual_ros), so a client cannot tell them apart: pose, velocity and odom in `map` (odom's twist
+in the body, child frame uav_{id}/base_link), set_pose and go_to_waypoint in `map` or `uav_{id}_home`,
+set_velocity in `map`; a refused command fails its service call with the reason. Also
+/uav_{id}/mavros/battery (sensor_msgs/BatteryState, from SYS_STATUS, as MAGNA's UAV managers read it),
+tf map -> uav_{id}/base_link, and the latched /uav_{id}/ual_mavlink/link (std_msgs/String: "" or what is
+wrong with the link).
 
 The main loop runs on ROS time (simulated when /use_sim_time is set): every tick sends the set-point
 and publishes the topics.
@@ -53,31 +54,20 @@ class UalServer:
         from nav_msgs.msg import Odometry
         from sensor_msgs.msg import BatteryState
         from std_msgs.msg import String
-        from std_srvs.srv import Empty
         from uav_abstraction_layer.msg import State
-        from uav_abstraction_layer.srv import GoToWaypoint, GoToWaypointGeo, Land, SetHome, TakeOff
+
+        from magna_common.ual_ros import serve_ual, ual_publishers
 
         self.rospy = rospy
         self.backend = backend
         uav_id = backend.settings.uav_id
         self.uav_id = uav_id
-        ual = functools.partial(names.ual, uav_id)  # this UAV's UAL names: ual("pose")
-        self._pose_pub = rospy.Publisher(ual("pose"), PoseStamped, queue_size=1)
-        self._velocity_pub = rospy.Publisher(ual("velocity"), TwistStamped, queue_size=1)
-        self._odom_pub = rospy.Publisher(ual("odom"), Odometry, queue_size=1)
-        self._state_pub = rospy.Publisher(ual("state"), State, queue_size=1)
+        self._pose_pub, self._velocity_pub, self._odom_pub, self._state_pub = ual_publishers(
+            uav_id, functools.partial(rospy.Publisher, queue_size=1))
         self._battery_pub = rospy.Publisher(names.battery(uav_id), BatteryState, queue_size=1)
         self._link_pub = rospy.Publisher(names.mavlink_link(uav_id), String, queue_size=1, latch=True)
         self._tf = tf2_ros.TransformBroadcaster() if tf else None
-        self._subscribers = [rospy.Subscriber(ual("set_pose"), PoseStamped, self._on_set_pose, queue_size=1),
-                             rospy.Subscriber(ual("set_velocity"), TwistStamped, self._on_set_velocity, queue_size=1)]
-        self._services = [
-            rospy.Service(ual("take_off"), TakeOff, self._take_off),
-            rospy.Service(ual("land"), Land, self._land),
-            rospy.Service(ual("go_to_waypoint"), GoToWaypoint, self._go_to_waypoint),
-            rospy.Service(ual("go_to_waypoint_geo"), GoToWaypointGeo, self._go_to_waypoint_geo),
-            rospy.Service(ual("set_home"), SetHome, self._set_home),
-            rospy.Service(ual("recover_from_manual"), Empty, self._recover_from_manual)]
+        self._subscribers, self._services = serve_ual(uav_id, self)
         self._pose, self._twist, self._odom = PoseStamped(), TwistStamped(), Odometry()
         self._pose.header.frame_id = self._twist.header.frame_id = self._odom.header.frame_id = MAP_FRAME
         self._odom.child_frame_id = f"uav_{uav_id}/base_link"
@@ -143,14 +133,14 @@ class UalServer:
             self._battery_pub.publish(self._battery)
 
     # --- streamed set-points --------------------------------------------------------------------------------------
-    def _on_set_pose(self, msg) -> None:
+    def on_set_pose(self, msg) -> None:
         p = msg.pose.position
         try:
             self.backend.set_pose(msg.header.frame_id, (p.x, p.y, p.z), yaw_of(msg.pose.orientation))
         except CommandRefused as err:
             self.rospy.logwarn_throttle(2.0, f"{names.ual(self.uav_id, 'set_pose')} ignored: {err}")
 
-    def _on_set_velocity(self, msg) -> None:
+    def on_set_velocity(self, msg) -> None:
         if msg.header.frame_id not in ("", MAP_FRAME):
             self.rospy.logwarn_throttle(2.0, f"{names.ual(self.uav_id, 'set_velocity')} ignored: header.frame_id "
                                              f"'{msg.header.frame_id}' unknown; send velocities in '{MAP_FRAME}'")
@@ -162,26 +152,26 @@ class UalServer:
             self.rospy.logwarn_throttle(2.0, f"{names.ual(self.uav_id, 'set_velocity')} ignored: {err}")
 
     # --- services -------------------------------------------------------------------------------------------------
-    def _take_off(self, req):
+    def take_off(self, req):
         return self._call("take_off", lambda: self.backend.take_off(req.height, req.blocking), req)
 
-    def _land(self, req):
+    def land(self, req):
         return self._call("land", lambda: self.backend.land(req.blocking), req)
 
-    def _go_to_waypoint(self, req):
+    def go_to_waypoint(self, req):
         p = req.waypoint.pose.position
         return self._call("go_to_waypoint", lambda: self.backend.go_to(
             req.waypoint.header.frame_id, (p.x, p.y, p.z), yaw_of(req.waypoint.pose.orientation), req.blocking), req)
 
-    def _go_to_waypoint_geo(self, req):
+    def go_to_waypoint_geo(self, req):
         fix = req.waypoint
         return self._call("go_to_waypoint_geo", lambda: self.backend.go_to_geo(
             fix.latitude, fix.longitude, fix.altitude, req.blocking), req)
 
-    def _set_home(self, req):
+    def set_home(self, req):
         return self._call("set_home", lambda: self.backend.set_home(req.set_z), req)
 
-    def _recover_from_manual(self, req):
+    def recover_from_manual(self, req):
         return self._call("recover_from_manual", self.backend.recover_from_manual, req)
 
     def _call(self, name: str, action, req):

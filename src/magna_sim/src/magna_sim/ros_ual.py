@@ -10,30 +10,25 @@ the UAV has arrived (ual_logic: held within the arrival radius), and fails with
 """
 from __future__ import annotations
 
-import functools
 import math
 
 import numpy as np
 import rospy
 from geometry_msgs.msg import PoseStamped, TwistStamped
 from nav_msgs.msg import Odometry
-from std_srvs.srv import Empty, EmptyResponse
+from std_srvs.srv import EmptyResponse
 from uav_abstraction_layer.msg import State
 from uav_abstraction_layer.srv import (
-    GoToWaypoint,
-    GoToWaypointGeo,
     GoToWaypointGeoResponse,
     GoToWaypointResponse,
-    Land,
     LandResponse,
-    SetHome,
     SetHomeResponse,
-    TakeOff,
     TakeOffResponse,
 )
 
 from magna_common import geo
 from magna_common import ros_names as names
+from magna_common.ual_ros import serve_ual, ual_publishers
 
 from .command_queue import CommandQueue, LoopStopped
 from .streams import stream_publisher
@@ -65,21 +60,8 @@ class UalServer:
         self.map_origin_geo = map_origin_geo
         self.base_frame = f"uav_{uav_id}/base_link"
         self.home_frame = f"uav_{uav_id}_home"
-        ual = functools.partial(names.ual, uav_id)  # this UAV's UAL names: ual("pose")
-        self._pose_pub = stream_publisher(ual("pose"), PoseStamped)
-        self._velocity_pub = stream_publisher(ual("velocity"), TwistStamped)
-        self._odom_pub = stream_publisher(ual("odom"), Odometry)
-        self._state_pub = stream_publisher(ual("state"), State)
-        self._subscribers = [rospy.Subscriber(ual("set_pose"), PoseStamped, self._on_set_pose, queue_size=1),
-                             rospy.Subscriber(ual("set_velocity"), TwistStamped, self._on_set_velocity,
-                                              queue_size=1)]
-        self._services = [
-            rospy.Service(ual("take_off"), TakeOff, self._take_off),
-            rospy.Service(ual("land"), Land, self._land),
-            rospy.Service(ual("go_to_waypoint"), GoToWaypoint, self._go_to_waypoint),
-            rospy.Service(ual("go_to_waypoint_geo"), GoToWaypointGeo, self._go_to_waypoint_geo),
-            rospy.Service(ual("set_home"), SetHome, self._set_home),
-            rospy.Service(ual("recover_from_manual"), Empty, self._recover_from_manual)]
+        self._pose_pub, self._velocity_pub, self._odom_pub, self._state_pub = ual_publishers(uav_id, stream_publisher)
+        self._subscribers, self._services = serve_ual(uav_id, self)
         self._pose = PoseStamped()
         self._pose.header.frame_id = MAP_FRAME
         self._twist = TwistStamped()
@@ -129,7 +111,7 @@ class UalServer:
             self._state_pub.publish(self._state)
 
     # --- streamed setpoints ----------------------------------------------------------------------------------
-    def _on_set_pose(self, msg: PoseStamped) -> None:
+    def on_set_pose(self, msg: PoseStamped) -> None:
         try:
             # Converted in the loop: the home frame moves with set_home, which runs there too.
             self.queue.run(lambda: self.logic.set_pose(self._to_map(msg.header.frame_id, msg.pose.position),
@@ -137,7 +119,7 @@ class UalServer:
         except (CommandRefused, LoopStopped) as err:
             rospy.logwarn_throttle(2.0, f"{names.ual(self.uav_id, 'set_pose')} ignored: {err}")
 
-    def _on_set_velocity(self, msg: TwistStamped) -> None:
+    def on_set_velocity(self, msg: TwistStamped) -> None:
         if msg.header.frame_id not in ("", MAP_FRAME):
             rospy.logwarn_throttle(2.0, f"{names.ual(self.uav_id, 'set_velocity')} ignored: header.frame_id "
                                         f"'{msg.header.frame_id}' unknown; send velocities in '{MAP_FRAME}'")
@@ -149,16 +131,16 @@ class UalServer:
             rospy.logwarn_throttle(2.0, f"{names.ual(self.uav_id, 'set_velocity')} ignored: {err}")
 
     # --- services --------------------------------------------------------------------------------------------
-    def _take_off(self, req):
+    def take_off(self, req):
         self._command("take_off", lambda: self.logic.take_off(req.height),
                       req.blocking, lambda: self.logic.state == UalState.FLYING_AUTO)
         return TakeOffResponse()
 
-    def _land(self, req):
+    def land(self, req):
         self._command("land", self.logic.land, req.blocking, lambda: self.logic.state == UalState.LANDED_ARMED)
         return LandResponse()
 
-    def _go_to_waypoint(self, req):
+    def go_to_waypoint(self, req):
         pose = req.waypoint.pose
         self._command("go_to_waypoint",
                       lambda: self.logic.go_to(self._to_map(req.waypoint.header.frame_id, pose.position),
@@ -166,18 +148,18 @@ class UalServer:
                       req.blocking, self.logic.reached)
         return GoToWaypointResponse()
 
-    def _go_to_waypoint_geo(self, req):
+    def go_to_waypoint_geo(self, req):
         fix = req.waypoint
         position = self._service_guard("go_to_waypoint_geo", lambda: self._geo_to_map(fix))
         self._command("go_to_waypoint_geo", lambda: self.logic.go_to(position, self.logic.vehicle.yaw),
                       req.blocking, self.logic.reached)
         return GoToWaypointGeoResponse()
 
-    def _set_home(self, req):
+    def set_home(self, req):
         self._command("set_home", lambda: self.logic.set_home(req.set_z), False, None)
         return SetHomeResponse()
 
-    def _recover_from_manual(self, _req):
+    def recover_from_manual(self, _req):
         self._command("recover_from_manual", self.logic.recover_from_manual, False, None)
         return EmptyResponse()
 
