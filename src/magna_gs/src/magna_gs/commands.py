@@ -15,8 +15,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from magna_uav.vocabulary import DIRECTIONS as MOVE_DIRECTIONS
+
 INTENTS = ("basic_action", "mission", "parameters", "algorithms")
-DIRECTIONS = {"up", "down", "left", "right", "forward", "backward", "x", "y", "z"}
+DIRECTIONS = {*MOVE_DIRECTIONS, "x", "y", "z"}  # basic_move's, and along the world axes
 ALGORITHMS = ("simple", "orca3", "orca3d", "neural_network")
 QUERIES = ("battery", "state", "position")
 # standby pauses the mission and resume goes on; critical raises the operator's critical event (every

@@ -20,13 +20,11 @@ from magna_msgs import msg as actions
 from magna_msgs.srv import GetFreeSpacePoseSet
 
 from magna_common import ros_names as names
+from magna_gs.mission.model import ACTION_OUTCOMES, CALLBACK_OUTCOMES
 from magna_sm import State
 from magna_sm.simple_action import SimpleActionClient
 from magna_uav.commanders import pose_stamped
 
-ACTION_OUTCOMES = ("succeeded", "collision", "low_battery", "GS_critical_event", "utm_new_flightplan", "preempted",
-                   "aborted")
-CALLBACK_OUTCOMES = ("completed", "failed")
 ACTION_TYPES = {"take_off": "TakeOff", "land": "Land", "basic_move": "BasicMove", "follow_path": "FollowPath",
                 "follow_agent_ad": "FollowAgentAD", "follow_agent_ap": "FollowAgentAP", "save_csv": "SaveCSV",
                 "set_mission": "SetMission"}

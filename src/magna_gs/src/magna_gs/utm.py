@@ -32,12 +32,13 @@ from pathlib import Path
 
 import numpy as np
 
+from magna_gs.mission.model import FROM_UTM
+
 DEFAULT_DISTANCE = 3.0  # m: closer than this, two plans may conflict
 DEFAULT_TIME = 3.0  # s: ... when their planned times there are closer than this
 DEFAULT_SPEED = 2.0  # m/s between waypoints without a planned time
 TOP_KEYS = ("flight_plans", "conflict", "speed")
 ENTRY_KEYS = ("ids", "at", "waypoints")
-FROM_UTM = ("from utm", "from_utm")
 _EPS = 1e-12
 
 FORMAT_HINT = ('a UTM plan is {"flight_plans": [{"ids": [1], "at": 0.0, "waypoints": [[x, y, z], ...]}, ...], '

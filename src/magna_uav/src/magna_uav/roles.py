@@ -17,6 +17,7 @@ import numpy as np
 
 from magna_uav.nai.goal import Goal
 from magna_uav.paths import WaypointTracker, smooth_path
+from magna_uav.vocabulary import DIRECTIONS, DYNAMICS
 from magna_uav.world_view import WorldView
 
 # uav_abstraction_layer/State constants (kept here so the roles need no ROS)
@@ -29,8 +30,6 @@ SUCCEEDED, ABORTED = "succeeded", "aborted"
 
 # What the manager does with a step
 FLY, WAYPOINT, TAKE_OFF, LAND, WAIT, HOVER = "fly", "waypoint", "take_off", "land", "wait", "hover"
-
-DIRECTIONS = ("up", "down", "left", "right", "forward", "backward")
 
 
 @dataclass
@@ -263,7 +262,7 @@ class BasicMoveRole(Role):
             raise ValueError(f"basic_move direction is {direction!r}: give one of {', '.join(DIRECTIONS)}")
         if move_type == "rotation" and direction not in ("left", "right"):
             raise ValueError(f"basic_move rotation direction is {direction!r}: give 'left' or 'right'")
-        if dynamic not in ("position", "velocity"):
+        if dynamic not in DYNAMICS:
             raise ValueError(f"basic_move dynamic is {dynamic!r}: give 'position' or 'velocity'")
         self.move_type, self.direction, self.value, self.dynamic = move_type, direction, float(value), dynamic
         self.accepted_radius, self.accepted_angle = accepted_radius, accepted_angle

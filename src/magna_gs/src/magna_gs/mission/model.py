@@ -13,9 +13,11 @@ from typing import Any, Literal, get_args
 
 from magna_common.errors import UserError
 from magna_uav.config import UavConfig
+from magna_uav.vocabulary import Direction, Dynamic, MoveType
 from magna_worlds.vocabulary import PoseKind
 
 # --- vocabulary: each fixed value set a Literal type and the tuple of its values (plain strings at run time) ------
+# (basic_move's move types, directions and dynamics are magna_uav.vocabulary's: the UAV manager takes them too)
 
 LeafType = Literal["CBState", "SimpleActionState"]
 LEAF_TYPES: tuple[LeafType, ...] = get_args(LeafType)
@@ -51,12 +53,6 @@ MISSION_OUTCOMES: tuple[MissionOutcome, ...] = get_args(MissionOutcome)
 CONCURRENCE_DEFAULT_OUTCOME = "completed"
 ALL_CHILDREN = "all"  # occurrencies_outcome_map key: every expanded child
 
-MoveType = Literal["takeoff", "land", "translation", "rotation"]  # basic_move
-MOVE_TYPES: tuple[MoveType, ...] = get_args(MoveType)
-Dynamic = Literal["position", "velocity"]  # what a move commands
-DYNAMICS: tuple[Dynamic, ...] = get_args(Dynamic)
-Direction = Literal["up", "down", "left", "right", "forward", "backward"]  # basic_move
-DIRECTIONS: tuple[Direction, ...] = get_args(Direction)
 WorldAction = Literal["spawn", "add", "delete"]  # world_config
 WORLD_ACTIONS: tuple[WorldAction, ...] = get_args(WorldAction)
 ExitType = Literal["time", "button"]  # what ends a wait

@@ -28,13 +28,10 @@ from magna_gs.mission.model import (
     ACTION_TYPES,
     CALLBACK_TYPES,
     CONTAINER_TYPES,
-    DIRECTIONS,
-    DYNAMICS,
     EXIT_TYPES,
     FROM_HYPERPARAMETERS,
     FROM_UTM,
     IDS_VARS,
-    MOVE_TYPES,
     NODE_TYPES,
     WORLD_ACTIONS,
     AlgorithmControlParams,
@@ -59,6 +56,7 @@ from magna_gs.mission.model import (
     WorldPartDef,
 )
 from magna_uav.config import UavConfig
+from magna_uav.vocabulary import DIRECTIONS, DYNAMICS, MOVE_TYPES
 from magna_worlds.vocabulary import POSE_KINDS
 
 NODE_KEYS = ("type", "name", "state_type", "parameters", "outcomes", "ids", "ids_var", "occurrencies",
