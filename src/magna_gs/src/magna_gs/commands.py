@@ -12,10 +12,12 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import cast
 
 import numpy as np
 
 from magna_uav.vocabulary import DIRECTIONS as MOVE_DIRECTIONS
+from magna_uav.vocabulary import Direction, direction_vector
 
 INTENTS = ("basic_action", "mission", "parameters", "algorithms")
 DIRECTIONS = {*MOVE_DIRECTIONS, "x", "y", "z"}  # basic_move's, and along the world axes
@@ -198,12 +200,9 @@ def _parse_id(text: str) -> int:
 
 
 def _offset(direction: str, distance: float, yaw: float) -> np.ndarray:
-    heading = np.array([math.cos(yaw), math.sin(yaw), 0.0])
-    left = np.array([-math.sin(yaw), math.cos(yaw), 0.0])
-    unit = {"up": np.array([0.0, 0.0, 1.0]), "down": np.array([0.0, 0.0, -1.0]), "forward": heading,
-            "backward": -heading, "left": left, "right": -left, "x": np.array([1.0, 0.0, 0.0]),
-            "y": np.array([0.0, 1.0, 0.0]), "z": np.array([0.0, 0.0, 1.0])}[direction]
-    return unit * distance
+    axes = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}  # the map's, whatever the heading
+    unit = axes[direction] if direction in axes else direction_vector(cast(Direction, direction), yaw)
+    return np.array(unit) * distance
 
 
 def _move_goal(direction: str, distance: float) -> dict:

@@ -17,7 +17,7 @@ import numpy as np
 
 from magna_uav.nai.goal import Goal
 from magna_uav.paths import WaypointTracker, smooth_path
-from magna_uav.vocabulary import DIRECTIONS, DYNAMICS
+from magna_uav.vocabulary import DIRECTIONS, DYNAMICS, direction_vector
 from magna_uav.world_view import WorldView
 
 # uav_abstraction_layer/State constants (kept here so the roles need no ROS)
@@ -274,10 +274,7 @@ class BasicMoveRole(Role):
         if self.move_type == "rotation":
             turn = math.radians(self.value) * (1.0 if self.direction == "left" else -1.0)
             return Goal(position=own.position.copy(), yaw=_wrap(yaw + turn), role="basic_move")
-        heading = np.array([math.cos(yaw), math.sin(yaw), 0.0])
-        left = np.array([-math.sin(yaw), math.cos(yaw), 0.0])
-        unit = {"up": np.array([0.0, 0.0, 1.0]), "down": np.array([0.0, 0.0, -1.0]), "forward": heading,
-                "backward": -heading, "left": left, "right": -left}[self.direction]
+        unit = np.array(direction_vector(self.direction, yaw))
         return Goal(position=own.position + unit * self.value, yaw=yaw, role="basic_move")
 
     def _step(self, view, now, elapsed):
