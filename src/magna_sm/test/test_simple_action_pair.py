@@ -292,6 +292,40 @@ def test_done_cb_may_send_the_next_goal(env):
     assert client.get_state() == GoalStatus.SUCCEEDED
 
 
+@pytest.mark.parametrize("topic", ["result", "feedback"])
+def test_wait_for_server_waits_for_the_servers_end_of_result_and_feedback(env, topic):
+    """A rospy publisher adds a subscriber's connection to its list only after the subscriber has it,
+    and publishes to nobody in between: a goal ending at once then lost its result. The server's
+    end is held back here until the client has been seen to wait for it."""
+    from magna_msgs.msg import TakeOffResult
+
+    server = env.server(lambda goal: server.set_succeeded(TakeOffResult(outcome="up")))
+    publisher = server.action_server._pubs[topic].impl
+    add_connection = publisher.add_connection
+    release = threading.Event()
+
+    def added_late(connection):
+        # Not in the calling thread: it is the node's one thread taking every incoming connection.
+        threading.Thread(target=lambda: (release.wait(WAIT), add_connection(connection)), daemon=True).start()
+        return True
+
+    publisher.add_connection = added_late
+    client = env.client(wait=False)
+    me = env.rospy.get_caller_id()
+    try:
+        ours = client._result_sub if topic == "result" else client._feedback_sub
+        wait_until(lambda: client._server_id == me and any(c.callerid_pub == me for c in ours.impl.connections),
+                   "the client's end of the connection")
+        assert not client.wait_for_server(0.2)   # the server's end cannot be there yet
+    finally:
+        release.set()
+    assert client.wait_for_server(WAIT)
+    assert any(c.endpoint_id == me for c in publisher.connections)
+    client.send_goal(take_off(1.0))
+    assert client.wait_for_result(WAIT)
+    assert client.get_result().outcome == "up"
+
+
 def test_server_shutdown_ends_its_thread(env):
     release = threading.Event()
     server = env.server(lambda goal: (release.wait(WAIT), server.set_succeeded()))
@@ -460,3 +494,20 @@ def test_goal_dropped_from_the_status_list_is_lost_and_stale_status_is_ignored(e
     assert client.wait_for_result(WAIT)
     assert client.get_state() == GoalStatus.LOST
     assert done == [(GoalStatus.LOST, None)]
+
+
+def test_a_terminal_status_waits_for_the_result_that_follows_it(env, raw):
+    """Status and result come on different connections: the status list may say SUCCEEDED first."""
+    from actionlib_msgs.msg import GoalStatus
+
+    client = env.client()
+    client.send_goal(take_off(1.0))
+    wait_until(lambda: raw.goals, "the goal at the raw server")
+    goal_id = raw.goals[0].goal_id
+    raw.publish_status((goal_id, GoalStatus.SUCCEEDED))
+    wait_until(lambda: client._goal.status == GoalStatus.SUCCEEDED, "the terminal status")
+    assert client.wait_for_result(0.05) is False
+    raw.publish_result(goal_id, GoalStatus.SUCCEEDED, "came later")
+    assert client.wait_for_result(WAIT)
+    assert client.get_state() == GoalStatus.SUCCEEDED
+    assert client.get_result().outcome == "came later"

@@ -8,9 +8,13 @@ from __future__ import annotations
 import threading
 import time
 import traceback
+import xmlrpc.client
+from typing import Any
 
 import rospy
 from actionlib_msgs.msg import GoalID, GoalStatus, GoalStatusArray
+
+from magna_common.processes import TimeoutTransport
 
 from .goal_id import GoalIdGenerator
 from .spec import action_topic, action_types, as_duration
@@ -21,6 +25,7 @@ __all__ = ["SimpleActionClient"]
 # Terminal states a goal only reaches after having been accepted (ACTIVE first).
 _ENDS_AFTER_ACTIVE = frozenset({GoalStatus.SUCCEEDED, GoalStatus.ABORTED, GoalStatus.PREEMPTED})
 _WAIT_SLICE = 0.1   # s: waits re-check rospy shutdown at least this often
+_BUS_INFO_TIMEOUT = 2.0   # s: longest wait for a server node to answer getBusInfo
 
 
 class _TrackedGoal:
@@ -61,6 +66,8 @@ class SimpleActionClient:
         self._goal: _TrackedGoal | None = None
         self._ids = GoalIdGenerator()
         self._server_id: str | None = None
+        # Our result and feedback connections the server was seen to have added (see _server_connected).
+        self._confirmed_links: tuple | None = None
         queue = rospy.get_param("actionlib_client_pub_queue_size", 10)
         queue = queue if queue > 0 else 10
         self._goal_pub = rospy.Publisher(action_topic(ns, "goal"), self.types.action_goal, queue_size=queue)
@@ -74,7 +81,7 @@ class SimpleActionClient:
 
     # -- connecting ---------------------------------------------------------------------------------
     def wait_for_server(self, timeout=rospy.Duration()) -> bool:
-        """Block until a server is connected on all five topics. A zero timeout waits forever."""
+        """Block until a server is connected on all five topics, at both ends. A zero timeout waits forever."""
         timeout = as_duration(timeout)
         deadline = rospy.get_rostime() + timeout if timeout > rospy.Duration() else None
         while not rospy.is_shutdown():
@@ -93,11 +100,43 @@ class SimpleActionClient:
         def publishes_to_server(pub):
             return any(c.endpoint_id == server for c in pub.impl.connections)
 
-        def subscribes_from_server(sub):
-            return any(getattr(c, "callerid_pub", None) == server for c in sub.impl.connections)
+        def link_from_server(sub):
+            return next((c for c in sub.impl.connections if getattr(c, "callerid_pub", None) == server), None)
 
-        return (publishes_to_server(self._goal_pub) and publishes_to_server(self._cancel_pub)
-                and subscribes_from_server(self._result_sub) and subscribes_from_server(self._feedback_sub))
+        if not (publishes_to_server(self._goal_pub) and publishes_to_server(self._cancel_pub)):
+            return False
+        links = (link_from_server(self._result_sub), link_from_server(self._feedback_sub))
+        if None in links:
+            return False
+        # Our end of a result or feedback connection is there before the server's: a rospy publisher
+        # answers the connection header first and adds the connection to its list after, and what it
+        # publishes in between reaches nobody (a goal that ends at once loses its result). So the
+        # server itself is asked, once per pair of connections.
+        if links != self._confirmed_links:
+            if not self._server_publishes_to_us(server):
+                return False
+            self._confirmed_links = links
+        return True
+
+    def _server_publishes_to_us(self, server: str) -> bool:
+        """Whether the server node's publishers of our result and feedback topics list a connection to us."""
+        try:
+            code, _, uri = rospy.get_master().lookupNode(server)
+            if code != 1:
+                return False
+            # XML-RPC answers are untyped: the node API answers [code, status message, rows]
+            answer: Any = xmlrpc.client.ServerProxy(uri, transport=TimeoutTransport(_BUS_INFO_TIMEOUT)).getBusInfo(
+                rospy.get_caller_id())
+        except (OSError, xmlrpc.client.Error) as error:
+            rospy.logdebug("%s: no bus info from %s: %s", self.ns, server, error)
+            return False
+        code, _, rows = answer
+        if code != 1:
+            return False
+        # a row: connection id, the other end, direction ("o": outbound), transport, topic[, connected]
+        me = rospy.get_caller_id()
+        ours = {row[4] for row in rows if row[1] == me and row[2] == "o" and (len(row) < 6 or row[5])}
+        return self._result_sub.resolved_name in ours and self._feedback_sub.resolved_name in ours
 
     # -- goals --------------------------------------------------------------------------------------
     def send_goal(self, goal, done_cb=None, active_cb=None, feedback_cb=None) -> None:
