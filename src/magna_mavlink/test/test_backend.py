@@ -219,7 +219,9 @@ def test_lost_heartbeats_with_telemetry_still_coming_are_not_a_lost_link(flight)
 def test_a_heartbeat_lost_during_a_blocking_call_fails_it_with_the_link(flight):
     import threading
 
-    f = flight()
+    # A cut link silences the position too. With equal timeouts either could run out first (the last message
+    # before the cut may be a HEARTBEAT or LOCAL_POSITION_NED); a longer position timeout makes it the link.
+    f = flight(position_timeout=2.0)
     flying(f, 1.0)
     errors = []
     thread = threading.Thread(target=lambda: _catch(errors, lambda: f.backend.go_to("map", (40, 0, 1), 0.0, True)))
@@ -227,6 +229,20 @@ def test_a_heartbeat_lost_during_a_blocking_call_fails_it_with_the_link(flight):
     f.fake.heartbeat = False
     thread.join(timeout=10)
     assert errors == [f"go_to_waypoint interrupted: no heartbeat from {f.url} for 1.0 s (nor any other message)"]
+
+
+def test_a_position_lost_during_a_blocking_call_fails_it_saying_so(flight):
+    import threading
+
+    f = flight()
+    flying(f, 1.0)
+    errors = []
+    thread = threading.Thread(target=lambda: _catch(errors, lambda: f.backend.go_to("map", (40, 0, 1), 0.0, True)))
+    thread.start()
+    f.fake.send_telemetry = False  # HEARTBEATs still come: the link is alive, the position is not
+    thread.join(timeout=10)
+    assert errors == [f"go_to_waypoint interrupted: UAV 3 is UNINITIALIZED (no position from {f.url} for 1.0 s)"]
+    assert f.backend.link_problem == ""
 
 
 def _catch(errors, call):

@@ -58,7 +58,7 @@ from .ual_state import (
     UNINITIALIZED,
     ual_state,
 )
-from .vehicle_state import Telemetry, VehicleState
+from .vehicle_state import POSITION_TIMEOUT, Telemetry, VehicleState
 
 AUTO, PILOT = "auto", "pilot"
 LAND_MODE = {ap.PX4: "AUTO.LAND", ap.ARDUPILOT: "LAND"}
@@ -76,6 +76,7 @@ class Settings:
     take_off_speed: float = 1.0  # m/s of the climbing set-point (PX4)
     stuck_time: float = 10.0  # s without coming nearer before a target is given up on; 0: never
     heartbeat_timeout: float = 2.0  # s without a message of the autopilot before the link counts as lost
+    position_timeout: float = POSITION_TIMEOUT  # s without LOCAL_POSITION_NED before the position counts as lost
     velocity_timeout: float = VELOCITY_TIMEOUT
     mode_timeout: float = 5.0  # s for the autopilot to show a mode or arming it accepted
     pilot_timeout: float = 120.0  # s a take_off waits for the safety pilot's switch (arming pilot)
@@ -144,7 +145,7 @@ class UalBackend:
             self._now = now
             t = self._telemetry = self.vehicle.snapshot()
             link_ok = self._update_link(t, now)
-            valid = link_ok and t.position_valid(now)
+            valid = link_ok and t.position_valid(now, self.settings.position_timeout)
             self.state = self._state(t, valid)
             if valid and (self.home is None or not self._home_by_user and t.home_geo is not None):
                 self._follow_autopilot_home(t)
@@ -263,7 +264,9 @@ class UalBackend:
                     return self._fail(op, f"land interrupted: {uav} left {LAND_MODE[_autopilot(t)]} for "
                                           f"{t.mode.name} (a pilot took over?)")
         elif op.name == GO_TO and self.state != FLYING_AUTO:
-            return self._fail(op, f"{GO_TO} interrupted: {uav} is {NAMES[self.state]}")
+            why = (f" (no position from {self.url} for {self.settings.position_timeout:.1f} s)"
+                   if self.state == UNINITIALIZED else "")
+            return self._fail(op, f"{GO_TO} interrupted: {uav} is {NAMES[self.state]}{why}")
         if op.phase == "arrive" and op.arrival is not None:
             op.arrival.update(t.position, t.yaw, now)
             if op.arrival.arrived:
