@@ -8,9 +8,10 @@ from pathlib import Path
 
 import pytest
 
+from tests.support import CORPUS
+
 HERE = Path(__file__).resolve().parent
 STAND_IN = HERE / "stand_in_gs.py"
-CORPUS = HERE.parents[3] / "shared" / "ros_magna_corpus"
 WORLD = "Gym/1Obs_Central_Cylinder"  # the original's default pair (corpus README)
 MISSION = "Gym/2UAVs_2paths_Central_Cylinder"
 LEAK_ENV = "MAGNA_MASTER_TEST_TOKEN"
@@ -38,8 +39,8 @@ def stand_in():
 
 @pytest.fixture
 def corpus():
-    if not (CORPUS / "Worlds").is_dir():
-        pytest.skip(f"the ROS-MAGNA corpus is not at {CORPUS}")
+    # A missing corpus fails these tests, as everywhere else in the suite: a skip would hide them.
+    assert (CORPUS / "Worlds").is_dir(), f"no corpus at {CORPUS}; set MAGNA_CORPUS to ros_magna_corpus"
     return CORPUS
 
 

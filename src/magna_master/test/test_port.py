@@ -10,6 +10,7 @@ import pytest
 
 from magna_master import port
 from magna_master.cli import main
+from tests.support import CORPUS
 
 
 def _geometry(name, prefix, origin=(0.0, 0.0, 0.05), poses=True):
@@ -228,8 +229,8 @@ def test_a_flat_folder_is_sorted_by_content(tmp_path):
 
 
 def test_the_shared_corpus_loads_and_every_pair_validates():
-    corpus = Path(__file__).resolve().parents[3] / ".." / "shared" / "ros_magna_corpus"
-    report = port.port_folder(corpus.resolve())
+    report = port.port_folder(CORPUS.resolve())
+    assert report.worlds and report.missions, f"no corpus at {CORPUS}; set MAGNA_CORPUS to ros_magna_corpus"
     assert all(w.loads for w in report.worlds), [w.problems for w in report.worlds if not w.loads]
     assert all(m.loads for m in report.missions), [m.problems for m in report.missions if not m.loads]
     assert len(report.pairs) == len(report.missions)
