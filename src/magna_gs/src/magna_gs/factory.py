@@ -21,6 +21,7 @@ from magna_msgs.srv import GetFreeSpacePoseSet
 
 from magna_common import ros_names as names
 from magna_gs.mission.model import ACTION_OUTCOMES, CALLBACK_OUTCOMES
+from magna_gs.verdict import FailedAction
 from magna_sm import State
 from magna_sm.simple_action import SimpleActionClient
 from magna_uav.commanders import pose_stamped
@@ -75,7 +76,7 @@ class MissionActionState(State):
                 goal = self.make_goal()
             except ValueError as error:
                 rospy.logerr(f"{self.where}: {error}")
-                return "aborted"
+                return self._aborted(f"its goal could not be made: {error}")
             client.send_goal(goal)
             while not client.wait_for_result(rospy.Duration(POLL)):
                 if rospy.is_shutdown() or self.preempt_requested():
@@ -89,13 +90,18 @@ class MissionActionState(State):
             else:
                 result = client.get_result()
                 outcome = getattr(result, "outcome", "") or "aborted"
+                message = getattr(result, "message", "") if result is not None else "no result from its UAV manager"
                 if outcome not in ACTION_OUTCOMES:
                     rospy.logwarn(f"{self.where}: UAV {self.uav_id} answered {outcome!r}; taken as aborted")
-                    outcome = "aborted"
+                    message, outcome = f"its manager answered {outcome!r}: {message}", "aborted"
                 if outcome != "succeeded":
-                    rospy.loginfo(f"{self.where}: UAV {self.uav_id} {self.action} {outcome}: "
-                                  f"{getattr(result, 'message', '')}")
-                return outcome
+                    rospy.loginfo(f"{self.where}: UAV {self.uav_id} {self.action} {outcome}: {message}")
+                return self._aborted(message) if outcome == "aborted" else outcome
+
+    def _aborted(self, reason: str) -> str:
+        """Aborted, and kept for the ground station's verdict: a failed action is never part of a success."""
+        self.services.failed_actions.add(FailedAction(self.uav_id, self.action, self.where, reason, rospy.get_time()))
+        return "aborted"
 
 
 class CallbackState(State):

@@ -68,6 +68,7 @@ from magna_gs.mission.loader import MissionError, load_mission
 from magna_gs.sim_pause import SimulationPause
 from magna_gs.utm import choose_plan, mission_uses_utm
 from magna_gs.utm_client import UtmLink
+from magna_gs.verdict import FailedActions, judge_actions
 from magna_mavlink.fleet import FleetError, check_against_mission, load_fleet, mavlink_uavs
 from magna_sm.introspection import IntrospectionServer
 
@@ -137,6 +138,7 @@ class GroundStationServices:
         self.utm_process: subprocess.Popen | None = None
         self.mavlink: MavlinkUavs | None = None  # the bridges of the hil and real UAVs, when there are any
         self.setup_errors: list[str] = []  # why the mission could not start (a MAVLink vehicle not there)
+        self.failed_actions = FailedActions()  # every action that ended aborted, with why (the states add them)
 
     # --- helpers the states use ------------------------------------------------------------
     def action_client(self, uav_id: int, action: str):
@@ -595,6 +597,7 @@ class GroundStation:
             message += "; could not start: " + "; ".join(services.setup_errors)
         if events:
             message += "; critical events: " + ", ".join(f"UAV {i} {e}" for i, e in events)
+        success, message = judge_actions(success, message, services.failed_actions.all())
         self._report(success, outcome, message, duration, collisions, wall)
         self.introspection.stop()
 

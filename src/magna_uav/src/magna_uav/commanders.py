@@ -16,13 +16,15 @@ from geometry_msgs.msg import PoseStamped, TwistStamped
 from uav_abstraction_layer.srv import GoToWaypoint, Land, SetHome, TakeOff
 
 from magna_common import ros_names as names
+from magna_common import ual_commands
 from magna_common.ros_errors import service_error_text
 
 FRAME = "map"
 
 
-class CommandRefused(RuntimeError):
-    """The UAL server refused a command; the message carries its reason."""
+class CommandRefused(ual_commands.CommandRefused):
+    """The UAL server refused a command (or is not there); the message carries its reason. The UAV manager
+    catches its base class (no ROS there) and ends the role aborted with that reason."""
 
 
 def pose_stamped(position: Sequence[float], yaw: float = 0.0, frame: str = FRAME) -> PoseStamped:
@@ -55,8 +57,9 @@ class UalCommander:
     def _call(self, name: str, **request):
         try:
             return self._services[name](**request)
-        except rospy.ServiceException as error:
-            raise CommandRefused(f"UAV {self.uav_id}: {name} refused: {service_error_text(error)}") from None
+        except rospy.ServiceException as error:  # the server's refusal, or the server gone
+            reason, full = service_error_text(error), names.ual(self.uav_id, name)
+            raise CommandRefused(reason if reason.startswith(full) else f"{full}: {reason}") from None
 
     def take_off(self, height: float) -> None:
         self._call("take_off", height=float(height), blocking=False)

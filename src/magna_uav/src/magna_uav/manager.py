@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from magna_common.ual_commands import CommandRefused
 from magna_uav.roles import FLY, FLYING_AUTO, FLYING_MANUAL, HOVER, LAND, TAKE_OFF, WAIT, WAYPOINT, Role, RoleStep
 
 PREEMPTED = "preempted"
@@ -124,7 +125,12 @@ class UavManager:
                         self._record(now, None, np.zeros(3), "ual", evaluation, None, outcome)
                         return RoleResult(outcome, evaluation.reason, steps + 1, [outcome])
                     step = role.step(self.view, now)
-                    chosen, algorithm, feasible = self._execute(step, now)
+                    try:
+                        chosen, algorithm, feasible = self._execute(step, now)
+                    except CommandRefused as refusal:  # never a success: the action ends aborted, saying why
+                        step.outcome, step.message = ABORTED, f"{role.name}: UAL refused: {refusal}"
+                        self._hover()
+                        chosen, algorithm, feasible = np.zeros(3), "ual", None
                     self._record(now, step.goal, chosen, algorithm, evaluation, feasible, step.outcome or "")
                 steps += 1
                 feedback(step)

@@ -6,6 +6,11 @@ navigation algorithm, send a UAL waypoint, ask for a take-off or landing, wait w
 the UAL manoeuvre runs, hover), how far along it is, and, when it ends, its outcome.
 Collisions, low battery and ground-station events are the evaluator's business: the
 manager ends the role with those outcomes.
+
+A UAL command the server refuses ends the role `aborted` with the server's reason (the manager
+catches the refusal). What the UAL accepts and then fails, or set-points it ignores (it takes them
+only FLYING_AUTO), only the UAL state and the UAV's motion show; each role watches them and ends
+`aborted` saying what it saw, never `succeeded`, and never waits for ever.
 """
 from __future__ import annotations
 
@@ -21,7 +26,16 @@ from magna_uav.vocabulary import DIRECTIONS, DYNAMICS, direction_vector
 from magna_uav.world_view import WorldView
 
 # uav_abstraction_layer/State constants (kept here so the roles need no ROS)
-LANDED_DISARMED, LANDED_ARMED, TAKING_OFF, FLYING_AUTO, FLYING_MANUAL, LANDING = 1, 2, 3, 4, 5, 6
+UNINITIALIZED, LANDED_DISARMED, LANDED_ARMED, TAKING_OFF, FLYING_AUTO, FLYING_MANUAL, LANDING = 0, 1, 2, 3, 4, 5, 6
+UAL_STATE_NAMES = ("UNINITIALIZED", "LANDED_DISARMED", "LANDED_ARMED", "TAKING_OFF", "FLYING_AUTO", "FLYING_MANUAL",
+                   "LANDING")
+LANDED = (LANDED_ARMED, LANDED_DISARMED)
+# A UAL that has not yet got the UAV's position (UNINITIALIZED: magna_sim before its first step after a spawn,
+# a real autopilot without a fix) refuses a take-off: the role waits this long (s of sim time) for it first.
+UAL_READY_TIME = 10.0
+# A take-off or landing the UAL accepted shows as TAKING_OFF or LANDING within this time (s of sim time); a
+# state that is still, or again, the one before means the UAL gave the manoeuvre up.
+UAL_ACCEPT_TIME = 2.0
 # A path whose current waypoint comes no nearer by STALL_PROGRESS metres in STALL_TIME seconds is stuck (an
 # unreachable waypoint: inside an obstacle, or beyond what the airframe can turn into); it ends aborted.
 STALL_TIME, STALL_PROGRESS = 120.0, 0.1
@@ -30,6 +44,37 @@ SUCCEEDED, ABORTED = "succeeded", "aborted"
 
 # What the manager does with a step
 FLY, WAYPOINT, TAKE_OFF, LAND, WAIT, HOVER = "fly", "waypoint", "take_off", "land", "wait", "hover"
+
+
+def state_name(state: int) -> str:
+    return UAL_STATE_NAMES[state] if 0 <= state < len(UAL_STATE_NAMES) else f"state {state}"
+
+
+class Stall:
+    """Watches a distance that should shrink (to a waypoint, to a height): stuck when it has come no nearer
+    by STALL_PROGRESS for STALL_TIME. Every role that waits on motion ends with a reason, never flies on for ever.
+    A new `leg` (the next waypoint) starts the watch again."""
+
+    def __init__(self) -> None:
+        self.leg: object = None
+        self.best, self.since = math.inf, 0.0
+
+    def stuck(self, leg: object, distance: float, elapsed: float) -> bool:
+        if leg != self.leg or distance < self.best - STALL_PROGRESS:
+            self.leg, self.best, self.since = leg, distance, elapsed
+            return False
+        return elapsed - self.since >= STALL_TIME
+
+
+def not_flying(own, what: str) -> str:
+    """Why `what` cannot be flown by set-points now ("" when it can): the UAL takes them only FLYING_AUTO and
+    says nothing when it ignores one, so a role flying by set-points would wait for ever (or, following for a
+    duration, claim success while the UAV sat on the ground). FLYING_MANUAL is the manager's business."""
+    if own.ual_state in (FLYING_AUTO, FLYING_MANUAL):
+        return ""
+    if own.ual_state in LANDED:
+        return f"the UAV is landed ({state_name(own.ual_state)}): {what} needs it flying (take off first)"
+    return f"the UAL is {state_name(own.ual_state)}: {what} needs it FLYING_AUTO, and the UAL ignores set-points now"
 
 
 @dataclass
@@ -62,7 +107,11 @@ class Role(ABC):
 
 
 class TakeOffRole(Role):
-    """Ask UAL for a take-off to `height` above the UAV, then wait for FLYING_AUTO at that height."""
+    """Ask UAL for a take-off to `height` above the UAV, then wait for FLYING_AUTO at that height.
+
+    It ends aborted, never succeeded, when the UAL refuses (the manager), gives the take-off up (the state is
+    landed again, or never became TAKING_OFF), is interrupted (LANDING, UNINITIALIZED), or the UAV climbs no
+    more (Stall: magna_sim keeps a blocked take-off TAKING_OFF for ever)."""
 
     name = "take_off"
 
@@ -72,39 +121,95 @@ class TakeOffRole(Role):
             raise ValueError(f"take_off height is {height}: give a positive height in metres")
         self.height, self.tolerance = float(height), tolerance
         self.target_z: float | None = None
+        self.asked_at = 0.0
+        self.accepted = False  # the UAL showed TAKING_OFF since it was asked
+        self.stall = Stall()
 
     def _step(self, view, now, elapsed):
         own = view.own
         if self.target_z is None:
             if own.ual_state == FLYING_AUTO:
                 return RoleStep(HOVER, percent=100.0, outcome=SUCCEEDED, message="already flying")
-            self.target_z = float(own.position[2]) + self.height
+            if own.ual_state == UNINITIALIZED and elapsed < UAL_READY_TIME:
+                return RoleStep(WAIT)  # asked now, the UAL would refuse; after UAL_READY_TIME it says why itself
+            self.target_z, self.asked_at = float(own.position[2]) + self.height, elapsed
             return RoleStep(TAKE_OFF, height=self.height, goal=Goal(position=own.position + [0, 0, self.height]))
         climbed = 100.0 * min(1.0, max(0.0, 1.0 - (self.target_z - own.position[2]) / self.height))
         if own.ual_state == FLYING_AUTO and abs(own.position[2] - self.target_z) <= self.tolerance:
             return RoleStep(HOVER, percent=100.0, outcome=SUCCEEDED, message=f"flying at {own.position[2]:.2f} m")
+        failure = self._failure(own, elapsed)
+        if failure:
+            return RoleStep(HOVER, percent=climbed, outcome=ABORTED, message=failure)
         if self.timed_out(elapsed):
             return RoleStep(HOVER, percent=climbed, outcome=ABORTED, message=f"not up within {self.duration:g} s")
         return RoleStep(WAIT, percent=climbed)
 
+    def _failure(self, own, elapsed: float) -> str:
+        """Why the take-off the UAL accepted has failed ("" while it goes on)."""
+        state = own.ual_state
+        self.accepted = self.accepted or state == TAKING_OFF
+        z = float(own.position[2])
+        if state in LANDED:
+            if self.accepted:
+                return (f"take-off failed: the UAL reports {state_name(state)} again at z = {z:.2f} m: it gave the "
+                        f"take-off up (its log says why)")
+            if elapsed - self.asked_at >= UAL_ACCEPT_TIME:
+                return (f"take-off failed: the UAL still reports {state_name(state)} {elapsed - self.asked_at:.1f} s "
+                        f"after it accepted the take-off")
+        elif state in (LANDING, UNINITIALIZED):
+            return f"take-off interrupted: the UAL reports {state_name(state)} at z = {z:.2f} m"
+        assert self.target_z is not None  # asked before any failure is looked for
+        if self.stall.stuck(None, self.target_z - z, elapsed):
+            return (f"take-off stuck: climbed no nearer than {self.stall.best:.2f} m below {self.target_z:.2f} m in "
+                    f"{STALL_TIME:g} s (UAL state {state_name(state)}): something above it, or the UAL holds it")
+        return ""
+
 
 class LandRole(Role):
+    """Ask UAL to land, then wait for a landed state. Aborted, never succeeded, when the UAL refuses (the
+    manager), gives the landing up (FLYING_AUTO again, or never LANDING), is interrupted (TAKING_OFF,
+    UNINITIALIZED), or the UAV comes down no more (Stall: a roof under it, the UAL holding it)."""
+
     name = "land"
 
     def __init__(self, duration: float = 0.0):
         super().__init__(duration)
         self.asked = False
+        self.asked_at = 0.0
+        self.accepted = False  # the UAL showed LANDING since it was asked
+        self.stall = Stall()
 
     def _step(self, view, now, elapsed):
         own = view.own
-        if own.ual_state in (LANDED_ARMED, LANDED_DISARMED):
+        if own.ual_state in LANDED:
             return RoleStep(WAIT, percent=100.0, outcome=SUCCEEDED, message="landed")
         if not self.asked:
-            self.asked = True
+            self.asked, self.asked_at = True, elapsed
             return RoleStep(LAND)
+        failure = self._failure(own, elapsed)
+        if failure:
+            return RoleStep(HOVER, outcome=ABORTED, message=failure)
         if self.timed_out(elapsed):
             return RoleStep(HOVER, outcome=ABORTED, message=f"not landed within {self.duration:g} s")
         return RoleStep(WAIT, percent=50.0 if own.ual_state == LANDING else 0.0)
+
+    def _failure(self, own, elapsed: float) -> str:
+        state = own.ual_state
+        self.accepted = self.accepted or state == LANDING
+        z = float(own.position[2])
+        if state == FLYING_AUTO:
+            if self.accepted:
+                return (f"landing failed: the UAL reports FLYING_AUTO again at z = {z:.2f} m: it gave the landing up "
+                        f"(its log says why)")
+            if elapsed - self.asked_at >= UAL_ACCEPT_TIME:
+                return (f"landing failed: the UAL still reports FLYING_AUTO {elapsed - self.asked_at:.1f} s after it "
+                        f"accepted the landing")
+        elif state in (TAKING_OFF, UNINITIALIZED):
+            return f"landing interrupted: the UAL reports {state_name(state)} at z = {z:.2f} m"
+        if self.stall.stuck(None, z, elapsed):
+            return (f"landing stuck: came no lower than z = {self.stall.best:.2f} m in {STALL_TIME:g} s (UAL state "
+                    f"{state_name(state)}): something under it, or the UAL holds it")
+        return ""
 
 
 class FollowPathRole(Role):
@@ -131,14 +236,14 @@ class FollowPathRole(Role):
         self.lookahead = lookahead  # m along the smoothed path ahead of the UAV
         self.on_path = 0  # the smoothed sample the UAV was last placed at: it only moves forward
         self.sent_waypoint: int | None = None
-        self._progress = (-1, math.inf, 0.0)  # (waypoint index, best distance to it, role time of that best)
+        self.stall = Stall()  # on the current waypoint
 
     def _step(self, view, now, elapsed):
         own = view.own
-        if elapsed == 0.0 and own.ual_state in (LANDED_ARMED, LANDED_DISARMED):
-            # UAL refuses waypoints on the ground: waiting would hang the mission, so say why and end
-            return RoleStep(WAIT, outcome=ABORTED, message="the UAV is landed: a path needs it flying (take off "
-                                                           "first)")
+        # By velocity the UAL ignores set-points unless FLYING_AUTO; by position it refuses the waypoint itself
+        not_up = not_flying(own, "a path")
+        if not_up and (elapsed == 0.0 or self.dynamic == "velocity"):
+            return RoleStep(WAIT if elapsed == 0.0 else HOVER, outcome=ABORTED, message=not_up)
         self.tracker.update(own.position)
         percent = 100.0 * self.tracker.index / len(self.waypoints)
         if self.tracker.done:
@@ -159,14 +264,10 @@ class FollowPathRole(Role):
     def _stalled(self, distance: float, elapsed: float) -> str:
         """Why the role is stuck ("" while it is not): no waypoint reached and the current one come no nearer
         than before for STALL_TIME. A mission must end with a reason, never fly on for ever."""
-        index, best, since = self._progress
-        if index != self.tracker.index or distance < best - STALL_PROGRESS:
-            self._progress = (self.tracker.index, distance, elapsed)
+        if not self.stall.stuck(self.tracker.index, distance, elapsed):
             return ""
-        if elapsed - since < STALL_TIME:
-            return ""
-        return (f"stuck: waypoint {index + 1} of {len(self.waypoints)} came no nearer than {best:.2f} m in "
-                f"{STALL_TIME:g} s (accepted radius {self.tracker.accepted_radius:g} m)")
+        return (f"stuck: waypoint {self.tracker.index + 1} of {len(self.waypoints)} came no nearer than "
+                f"{self.stall.best:.2f} m in {STALL_TIME:g} s (accepted radius {self.tracker.accepted_radius:g} m)")
 
     def _carrot(self, position, target):
         """A point `lookahead` metres along the smoothed path past the point nearest the UAV,
@@ -202,6 +303,9 @@ class FollowAgentAtDistanceRole(Role):
     def _step(self, view, now, elapsed):
         if self.target_id == view.own_id:
             return RoleStep(HOVER, outcome=ABORTED, message=f"UAV {self.target_id} cannot follow itself")
+        not_up = not_flying(view.own, f"following UAV {self.target_id}")
+        if not_up:  # followed "for its duration" on the ground would pass as a success
+            return RoleStep(HOVER, outcome=ABORTED, message=not_up)
         target = view.agent(self.target_id)
         if target is None:
             if elapsed > self.lost_after:
@@ -268,6 +372,7 @@ class BasicMoveRole(Role):
         self.accepted_radius, self.accepted_angle = accepted_radius, accepted_angle
         self.goal: Goal | None = None
         self.start_position: np.ndarray | None = None
+        self.stall = Stall()
 
     def _plan(self, own) -> Goal:
         yaw = own.yaw
@@ -279,6 +384,9 @@ class BasicMoveRole(Role):
 
     def _step(self, view, now, elapsed):
         own = view.own
+        not_up = not_flying(own, f"a {self.move_type} by velocity")
+        if self.dynamic == "velocity" and not_up:  # by position the UAL refuses the waypoint itself
+            return RoleStep(HOVER, goal=self.goal, outcome=ABORTED, message=not_up)
         if self.goal is None:
             self.goal, self.start_position = self._plan(own), own.position.copy()
         if self.move_type == "rotation":
@@ -295,6 +403,12 @@ class BasicMoveRole(Role):
         if self.timed_out(elapsed):
             return RoleStep(HOVER, goal=self.goal, percent=percent, outcome=ABORTED,
                             message=f"{self.move_type} not done within {self.duration:g} s")
+        # a rotation's distance in radians: STALL_PROGRESS (0.1) is about 6 degrees
+        if self.stall.stuck(None, left, elapsed):
+            unit = "rad" if self.move_type == "rotation" else "m"
+            return RoleStep(HOVER, goal=self.goal, percent=percent, outcome=ABORTED,
+                            message=f"{self.move_type} stuck: {self.stall.best:.2f} {unit} short of its goal for "
+                                    f"{STALL_TIME:g} s")
         return RoleStep(WAYPOINT if self.dynamic == "position" else FLY, goal=self.goal, percent=percent)
 
 
@@ -321,8 +435,7 @@ class OnBoardMissionRole(Role):
         self.roles, self.index = list(roles), 0
 
     def _step(self, view, now, elapsed):
-        if elapsed == 0.0 and view.own.ual_state in (LANDED_ARMED, LANDED_DISARMED) \
-                and not isinstance(self.roles[0], TakeOffRole):
+        if elapsed == 0.0 and view.own.ual_state in LANDED and not isinstance(self.roles[0], TakeOffRole):
             self.roles.insert(0, TakeOffRole(self.IMPLICIT_TAKEOFF_HEIGHT))
         step = self.roles[self.index].step(view, now)
         done_before = self.index
