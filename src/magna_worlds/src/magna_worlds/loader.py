@@ -23,7 +23,6 @@ MAGNA does with it (`strict=True` refuses it instead):
 """
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass, replace
@@ -32,7 +31,14 @@ from typing import TYPE_CHECKING, Any, Never
 
 import numpy as np
 
-from magna_common.json_fields import JsonFields, join_path, located
+from magna_common.json_fields import (
+    JsonFields,
+    UnreadableJson,
+    describe,
+    join_path,
+    located,
+    read_json_document,
+)
 from magna_common.search_path import find_world_file, world_candidates, world_folders
 from magna_worlds.errors import WorldError
 from magna_worlds.migrate import migrate
@@ -109,20 +115,18 @@ def world_from_data(data: Any, source: str, base: Path | None = None,
         boundaries_required = False
     else:
         boundaries_required = True
-    return reader.world(data, source, base, boundaries_required)
+    try:
+        return reader.world(data, source, base, boundaries_required)
+    except RecursionError:  # lists inside lists, hundreds deep, where the format has a number
+        raise WorldError(source, "", "nested too deeply (hundreds of levels of lists or objects); no world needs "
+                         "that many: check how the file was made") from None
 
 
 def _read_json(path: Path, source: str) -> Any:
     try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise WorldError(source, "", "no such file; check the path") from None
-    except OSError as err:
-        raise WorldError(source, "", f"cannot read it: {err.strerror}") from None
-    try:
-        return json.loads(text)
-    except json.JSONDecodeError as err:
-        raise WorldError(source, "", f"not valid JSON: {err.msg} at line {err.lineno} column {err.colno}") from None
+        return read_json_document(path)
+    except UnreadableJson as err:
+        raise WorldError(source, "", str(err)) from None
 
 
 def default_boundaries(volumes: Iterable[Volume], margin: float = BOUNDARY_MARGIN) -> np.ndarray:
@@ -168,6 +172,9 @@ class _Loader:
         self.changes += [f"{source}: {change}" for change in migration.changes]
         data = migration.data
         f = JsonFields.first_error(source, WorldError, migration.original_path)
+        if not isinstance(data, dict):
+            raise WorldError(source, "", "the top level must be an object {\"scenario\": {\"world_boundaries\": ..., "
+                             f"\"volumes\": [...]}}}}, got {describe(data)}")
         scenario = f.object(_key(f, data, "", "scenario"), "scenario")
         boundaries = None
         if "world_boundaries" in scenario:
@@ -490,22 +497,26 @@ def _orientation(f: Fields, value: Any, where: str) -> OrientationSpec:
 
 def _poses(f: Fields, value: Any, where: str) -> tuple[tuple[tuple[float, ...], tuple[float, ...]], ...]:
     """[[[x, y, z], [roll, pitch, yaw] or [qx, qy, qz, qw]], ...] -> ((xyz, quaternion), ...)."""
-    poses = []
+    positions, turns = [], []
     for i, item in enumerate(f.list(value, where)):
         at = join_path(where, i)
         pair = f.list(item, at)
         if len(pair) != 2:
             f.fail(at, f"expected [[x, y, z], [roll, pitch, yaw]], got {len(pair)} item(s)")
-        xyz = f.numbers(pair[0], join_path(at, 0), 3, "[x, y, z] in m")
+        positions.append(f.numbers(pair[0], join_path(at, 0), 3, "[x, y, z] in m"))
         turn = f.list(pair[1], join_path(at, 1))
         if len(turn) == 3:
-            quaternion = quaternions_from_rpy(f.numbers(turn, join_path(at, 1), 3, "[roll, pitch, yaw]"))[0]
+            turns.append(f.numbers(turn, join_path(at, 1), 3, "[roll, pitch, yaw]"))
         else:
             q = np.array(f.numbers(turn, join_path(at, 1), 4, "[roll, pitch, yaw] or [qx, qy, qz, qw]"))
             if np.linalg.norm(q) < 1e-9:
                 f.fail(join_path(at, 1), "a zero quaternion is no rotation; use [0, 0, 0, 1]")
-            quaternion = q / np.linalg.norm(q)
-        poses.append((xyz, tuple(float(v) for v in quaternion)))
-    if not poses:
+            turns.append(q / np.linalg.norm(q))
+    if not positions:
         f.fail(where, "give at least one pose [[x, y, z], [roll, pitch, yaw]]")
-    return tuple(poses)
+    rpy_rows = [n for n, turn in enumerate(turns) if len(turn) == 3]
+    quaternions = [tuple(float(v) for v in turn) for turn in turns]
+    if rpy_rows:  # converted together: scipy's per-call overhead dominates a file of thousands of poses
+        for n, quaternion in zip(rpy_rows, quaternions_from_rpy([turns[n] for n in rpy_rows]), strict=True):
+            quaternions[n] = tuple(float(v) for v in quaternion)
+    return tuple(zip(positions, quaternions, strict=True))

@@ -17,11 +17,10 @@ renamed keys back).
 """
 from __future__ import annotations
 
-import copy
 from dataclasses import dataclass, field
 from typing import Any
 
-from magna_common.json_fields import join_path
+from magna_common.json_fields import copy_json, join_path
 
 LEGACY_SETS_KEY, SETS_KEY = "divisions", "poses_sets"
 LEGACY_ORIENTATION_KEY, ORIENTATION_KEY = "orientation", "poses_orientation"
@@ -51,7 +50,7 @@ class Migration:
 
 def migrate(data: Any) -> Migration:
     """Bring a world (`{"scenario": ...}` or a bare list of volumes) to the current format."""
-    result = Migration(copy.deepcopy(data), data)
+    result = Migration(copy_json(data), data)
     if isinstance(result.data, list):
         volumes, path = result.data, ""
     elif isinstance(result.data, dict) and isinstance(result.data.get("scenario"), dict):
@@ -64,7 +63,7 @@ def migrate(data: Any) -> Migration:
         geometries = volume.get("geometries") if isinstance(volume, dict) else None
         if not isinstance(geometries, list):
             continue
-        names = {g.get("name") for g in geometries if isinstance(g, dict)}
+        names = [g.get("name") for g in geometries if isinstance(g, dict)]  # a name may be anything here
         for g, geometry in enumerate(geometries):
             if isinstance(geometry, dict):
                 where = join_path(join_path(join_path(path, v), "geometries"), g)

@@ -28,15 +28,28 @@ from scipy.spatial.transform import Rotation
 from magna_worlds.model import OrientationSpec, PoseSetSpec
 from magna_worlds.shapes import ShapeSpec, contains, half_extents, sample_uniform
 
+# Far above any real world (the largest has a few hundred poses), and low enough that a typo (a spacing of
+# 0.0001 m, a quantity of 1e9) is refused at once instead of filling the memory for minutes.
+MAX_POSES_PER_SET = 100_000
+
 
 class LayoutError(ValueError):
     """A pose set that cannot be laid out in its geometry; the message says which field and how to fix it."""
+
+
+def _check_count(count: float, field: str, fix: str) -> None:
+    """Refuse a set that would make more than MAX_POSES_PER_SET poses (`count` may be inf or nan)."""
+    if not count <= MAX_POSES_PER_SET:
+        shown = f"{count:.3g}" if math.isfinite(count) else "too many"
+        raise LayoutError(f"{field}: this set would make {shown} poses; MAGNA lays out at most {MAX_POSES_PER_SET} "
+                          f"per set: {fix}")
 
 
 def matrix_layout(spec: ShapeSpec, pose_set: PoseSetSpec) -> tuple[np.ndarray, np.ndarray]:
     if pose_set.matrix_type == "distance":
         return _distance_grid(spec, pose_set)
     counts = tuple(int(n) for n in pose_set.matrix_dimensions)
+    _check_count(math.prod(counts), "dimensions", "use fewer cells")
     cells = np.stack(np.meshgrid(*(np.arange(n) for n in counts), indexing="ij"), axis=-1).reshape(-1, 3)
     frac = (cells + 0.5) / np.array(counts)  # cell centres in (0, 1)
     d = spec.dimensions
@@ -71,7 +84,10 @@ def _distance_grid(spec: ShapeSpec, pose_set: PoseSetSpec) -> tuple[np.ndarray, 
     else:
         (low, high), turn = half_extents(spec), np.eye(3)
     extent = high - low
-    counts = np.floor(extent / spacing + 1e-9).astype(int)
+    with np.errstate(over="ignore", invalid="ignore"):
+        cells_per_axis = np.floor(extent / spacing + 1e-9)
+        _check_count(float(np.prod(np.maximum(cells_per_axis, 1.0))), "dimensions", "use larger spacings")
+    counts = cells_per_axis.astype(int)
     for axis, n in enumerate(counts):
         if n < 1:
             raise LayoutError(f"dimensions[{axis}]: a spacing of {spacing[axis]:g} m does not fit the geometry's "
@@ -95,6 +111,7 @@ def _turned_prism_box(spec: ShapeSpec, yaw: float) -> tuple[np.ndarray, np.ndarr
 
 
 def random_layout(spec: ShapeSpec, quantity: int, rng: np.random.Generator) -> np.ndarray:
+    _check_count(quantity, "quantity", "draw fewer")
     return sample_uniform(spec, quantity, rng)
 
 
@@ -121,7 +138,11 @@ def zigzag_layout(spec: ShapeSpec, pose_set: PoseSetSpec) -> np.ndarray:
     if y_high < y_low:
         raise LayoutError(f"margins[1]: {side_margin:g} m from both sides leaves no room across the polygon "
                           f"({np.ptp(poly[:, 1]):g} m); use a smaller margin")
-    count = int(math.floor((y_high - y_low) / between + 1e-9)) + 1
+    across = (y_high - y_low) / between
+    lines = math.floor(across + 1e-9) + 1 if math.isfinite(across) else math.inf
+    per_line = len(poly) + (float(np.ptp(poly[:, 0])) / along if along > 0 else 0.0)  # stretches <= edges / 2
+    _check_count(lines * per_line, "spacing", "use larger spacings")
+    count = int(lines)
     spare = (y_high - y_low) - (count - 1) * between  # centre the lines: equal room at both sides
     ys = y_low + spare / 2.0 + between * np.arange(count)
     eps = 1e-9 * max(1.0, float(np.ptp(poly)))

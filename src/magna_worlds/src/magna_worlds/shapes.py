@@ -33,12 +33,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from numbers import Real
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
+from magna_common.json_fields import is_number
 from magna_worlds.vocabulary import SHAPES, Shape
 
 TORUS_RING_SEGMENTS = 64  # around the z axis
@@ -291,7 +291,7 @@ def _sequence(value: Any, where: str, usage: str) -> list[Any]:
 
 
 def _finite(value: Any, where: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, Real) or not math.isfinite(value):
+    if not is_number(value):
         raise ShapeError(f"{where}: expected a finite number, got {value!r}")
     return float(value)
 

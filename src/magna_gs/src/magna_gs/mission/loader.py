@@ -12,11 +12,11 @@ Every problem is a `MissionError` line `file: JSON.path: message`.
 """
 from __future__ import annotations
 
-import json
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from magna_common.json_fields import UnreadableJson, read_json_document
 from magna_common.search_path import MISSIONS, candidates, find, looked_at, mission_folders
 from magna_gs.mission.migrate import migrate
 from magna_gs.mission.model import Mission, MissionError
@@ -61,21 +61,23 @@ def resolve_mission_path(mission: str, search_path: Iterable[Path] | None = None
 
 def read_mission_json(path: Path, source: str):
     try:
-        text = Path(path).read_text()
-    except FileNotFoundError:
-        raise MissionError(f"{source}: no such file; check the path") from None
-    except OSError as err:
-        raise MissionError(f"{source}: cannot read it: {err.strerror or err}") from None
-    try:
-        return json.loads(text)
-    except json.JSONDecodeError as err:
-        raise MissionError(f"{source}: not valid JSON: {err.msg} at line {err.lineno} column {err.colno}") from None
+        return read_json_document(Path(path))
+    except UnreadableJson as err:
+        raise MissionError(f"{source}: {err}") from None
 
 
 def mission_from_data(data, source: str, validate: bool = True, airframe_dir: Path | None = None,
                       strict: bool = False) -> LoadedMission:
     """Migrate, parse and (by default) validate already-read JSON; MissionError lists every problem found.
     `strict`: the warnings (what the original tolerated and MAGNA works around) are problems too."""
+    try:
+        return _mission_from_data(data, source, validate, airframe_dir, strict)
+    except RecursionError:  # containers inside containers, hundreds deep: the readers recurse per level
+        raise MissionError(f"{source}: State_Machine: states are nested too deeply (hundreds of containers inside "
+                           "each other); no mission needs that many levels: check how the file was made") from None
+
+
+def _mission_from_data(data, source: str, validate: bool, airframe_dir: Path | None, strict: bool) -> LoadedMission:
     migration = migrate(data)
     parsed = parse_mission(migration, source, airframe_dir)
     loaded = LoadedMission(parsed.mission, list(migration.changes), list(parsed.warnings))

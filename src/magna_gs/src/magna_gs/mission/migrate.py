@@ -27,10 +27,10 @@ renamed keys back).
 """
 from __future__ import annotations
 
-import copy
 from collections.abc import Iterator
 from typing import Any
 
+from magna_common.json_fields import copy_json
 from magna_worlds.migrate import Migration  # the same record of what a migration changed, for worlds and missions
 
 LEGACY_AGENTS_KEY = "UAVs_Config"
@@ -58,7 +58,7 @@ THREE_ITEM_DEFINITION_ARG = {"path": (None, "the geometry's zigzag path"), "rand
 
 def migrate(data: Any) -> Migration:
     """Bring a mission to the current schema; `changes` says what was done, in file order."""
-    result = Migration(copy.deepcopy(data), data)
+    result = Migration(copy_json(data), data)
     root = "State_Machine"
     if _is_state_list(result.data):
         _agents_for_a_state_list(result)
@@ -130,7 +130,7 @@ def _node(node: Any, path: str, n_agents: int, result: Migration) -> None:
         node["state_type"] = new_type
         note = ""
         if state_type == "new_world" and "parameters" not in node:
-            node["parameters"] = copy.deepcopy(LEGACY_NEW_WORLD)
+            node["parameters"] = copy_json(LEGACY_NEW_WORLD)
             note = (" with parameters {action: spawn, id: 1, world_part_def: from_hyperparameters} "
                     "(world 1 from the hyperparameters' world, as new_world made it)")
         elif state_type == "spawn_uavs" and "parameters" not in node:
@@ -203,8 +203,8 @@ def _callback_outcomes_in_map(node: dict, children: list, path: str, result: Mig
         if not isinstance(conditions, dict):
             continue
         for key, wanted in list(conditions.items()):
-            if wanted not in CB_OUTCOME_FOR_ACTION_OUTCOME:
-                continue
+            if not isinstance(wanted, str) or wanted not in CB_OUTCOME_FOR_ACTION_OUTCOME:
+                continue  # not an action outcome (a wrong type is the parser's to report)
             if key == "all":
                 named = [c for c in children if isinstance(c, dict)]
             else:
