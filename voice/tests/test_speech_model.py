@@ -7,8 +7,6 @@ import pytest
 from voice import speech_model
 from voice.speech_model import CMUDICT, Pronunciations, build_speech_model, cached_speech_model, espeak_to_cmu
 
-needs_espeak = pytest.mark.skipif(not __import__("shutil").which("espeak-ng"), reason="espeak-ng not installed")
-
 
 def _cmudict_entries(word):
     """The pronunciations of `word` as written in the model's cmudict file, in file order."""
@@ -50,7 +48,7 @@ def test_listed_acronyms_and_words_without_vowels_are_spelled_out(prons):
     assert prons.lookup("xkcd") == ["EH K S K EY S IY D IY"]
 
 
-@needs_espeak
+@pytest.mark.espeak
 @pytest.mark.parametrize("word, start, end",
                          [("zorblat", "Z", "T"), ("skyrelix", "S", "S"), ("quadrocopterix", "K", "S")])
 def test_a_made_up_word_gets_a_pronunciation_from_espeak_in_the_models_phones(prons, word, start, end):
@@ -62,7 +60,7 @@ def test_a_made_up_word_gets_a_pronunciation_from_espeak_in_the_models_phones(pr
     assert len(phones) >= len(word) // 2
 
 
-@needs_espeak
+@pytest.mark.espeak
 def test_a_call_sign_with_digits_joins_the_pronunciations_of_its_parts(prons):
     assert prons.lookup("zephyr9") == [f"{_cmudict_entries('zephyr')[0]} N AY N"]
     assert prons.lookup("uav3") == ["Y UW EY V IY TH R IY"]
@@ -98,7 +96,7 @@ def _dict_words(path):
     return {re.sub(r"\(\d+\)$", "", line.split()[0]) for line in path.read_text().splitlines() if line.strip()}
 
 
-@needs_espeak
+@pytest.mark.espeak
 def test_build_speech_model_writes_an_arpa_lm_and_a_dictionary_of_every_word(tmp_path):
     sentences = [*SENTENCES, "Drone Two, LAND!", "drone_one  tâke off"]
     model = build_speech_model(sentences, tmp_path / "m", extra_words=["magna", "zephyr9"])
@@ -122,7 +120,6 @@ def test_build_speech_model_refuses_an_empty_corpus_or_an_unpronounceable_word(t
     assert not (tmp_path / "x" / "commands.arpa").exists()  # nothing half-written
 
 
-@needs_espeak
 def test_the_cache_reuses_the_model_of_the_same_corpus_and_separates_other_corpora(tmp_path):
     first = cached_speech_model(SENTENCES, cache_dir=tmp_path)
     stamp = first.lm_path.stat().st_mtime_ns, first.dict_path.stat().st_mtime_ns

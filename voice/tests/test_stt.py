@@ -1,7 +1,5 @@
 """The recognisers: the offline one, restricted to a corpus of commands, transcribes synthetic speech of them;
 the online one fails with a clear message when Google cannot be reached."""
-import shutil
-
 import numpy as np
 import pytest
 
@@ -16,8 +14,6 @@ from voice.stt import (
     dither_level,
     prepare,
 )
-
-pytestmark = pytest.mark.skipif(not shutil.which("espeak-ng"), reason="espeak-ng not installed")
 
 NUMBERS = ("one two three four five six seven eight nine ten eleven twelve thirteen fourteen fifteen sixteen "
            "seventeen eighteen nineteen twenty").split()
@@ -56,6 +52,7 @@ def recognizer(tmp_path_factory):
     return OfflineRecognizer(cached_speech_model(corpus, cache_dir=tmp_path_factory.mktemp("voice-cache")))
 
 
+@pytest.mark.espeak
 def test_the_offline_recogniser_transcribes_synthetic_commands(recognizer):
     transcripts = [recognizer.transcribe(speak(s)) for s in SPOKEN]
     right = [s for s, t in zip(SPOKEN, transcripts, strict=True) if t.text == s]
@@ -67,6 +64,7 @@ def test_the_offline_recogniser_transcribes_synthetic_commands(recognizer):
                    for a in t.alternatives)
 
 
+@pytest.mark.espeak
 def test_the_offline_recogniser_is_deterministic_and_takes_float_audio(recognizer):
     samples = speak("drone two go up five meters")
     first = recognizer.transcribe(samples)
@@ -74,6 +72,7 @@ def test_the_offline_recogniser_is_deterministic_and_takes_float_audio(recognize
     assert recognizer.transcribe(samples.astype(np.float32) / 32768).text == first.text
 
 
+@pytest.mark.espeak
 def test_a_new_call_sign_is_recognised_with_its_derived_pronunciation(tmp_path):
     corpus = [*command_corpus()[:300], "zorblat take off", "zorblat land", "zorblat go up five meters"]
     recognizer = OfflineRecognizer(cached_speech_model(corpus, cache_dir=tmp_path))
@@ -86,6 +85,7 @@ def test_nothing_to_hear_gives_an_empty_transcript(recognizer):
     assert silence.alternatives == ([silence.text] if silence.text else [])
 
 
+@pytest.mark.espeak
 def test_audio_is_padded_and_dithered_to_a_noise_floor_below_the_speech():
     speech = speak("drone one land")
     ready = prepare(speech)
@@ -104,6 +104,7 @@ def test_as_int16_takes_float_and_stereo_audio():
         as_int16(np.zeros((2, 2, 2)))
 
 
+@pytest.mark.espeak
 def test_the_online_recogniser_says_clearly_when_google_is_unreachable():
     recognizer = OnlineRecognizer(endpoint="http://127.0.0.1:9/speech-api/v2/recognize", timeout=5)
     with pytest.raises(RecognitionError, match=r"^Google's online recogniser is unreachable \(.+\): "

@@ -1,5 +1,4 @@
 """espeak-ng synthesis: real speech audio for the recogniser tests, and spoken answers that never hang."""
-import shutil
 import subprocess
 import time
 
@@ -10,13 +9,12 @@ from voice import synth
 from voice.audio import SAMPLE_RATE, VoiceActivityDetector, prepare_for_recognition, read_wav, split_utterances
 from voice.synth import TEST_VOICES, SynthError, speak, synthesize, synthesize_to_file
 
-pytestmark = pytest.mark.skipif(shutil.which("espeak-ng") is None, reason="espeak-ng not installed (make setup)")
-
 
 def _rms(x):
     return float(np.sqrt(np.mean(x.astype(np.float64) ** 2)))
 
 
+@pytest.mark.espeak
 def test_synthesize_gives_16k_speech_that_the_vad_finds_once():
     x = synthesize("drone one land")
     assert x.dtype == np.int16 and x.ndim == 1
@@ -34,6 +32,7 @@ def test_synthesize_gives_16k_speech_that_the_vad_finds_once():
     assert 1.0 + 0.3 - 0.15 < start and end < 1.0 + 0.3 + x.size / SAMPLE_RATE + 0.15
 
 
+@pytest.mark.espeak
 def test_speed_voice_and_pitch_change_the_audio():
     slow, fast = synthesize("drone two take off", speed=120), synthesize("drone two take off", speed=220)
     assert slow.size > 1.4 * fast.size
@@ -42,6 +41,7 @@ def test_speed_voice_and_pitch_change_the_audio():
     assert not np.array_equal(synthesize("hello", voice="en-us+f2"), synthesize("hello", voice="en-us+m3"))
 
 
+@pytest.mark.espeak
 def test_every_test_voice_works():
     for voice, speed in TEST_VOICES:
         x = synthesize("go up five meters", voice=voice, speed=speed)
@@ -50,10 +50,12 @@ def test_every_test_voice_works():
     assert len({v for v, _ in TEST_VOICES}) == len(TEST_VOICES) >= 4
 
 
+@pytest.mark.espeak
 def test_text_starting_with_a_dash_is_spoken_not_parsed_as_an_option():
     assert synthesize("-s 400 minus five").size / SAMPLE_RATE > 1.0  # at 400 wpm it would be far shorter
 
 
+@pytest.mark.espeak
 def test_bad_voice_and_empty_text_are_clear_errors():
     with pytest.raises(SynthError, match="xx-nonexistent.*voice does not exist"):
         synthesize("hello", voice="xx-nonexistent")
@@ -68,11 +70,13 @@ def test_missing_espeak_says_how_to_install(monkeypatch):
     assert speak("hello") is False  # and speak() does not raise
 
 
+@pytest.mark.espeak
 def test_synthesize_to_file_round_trips(tmp_path):
     path = synthesize_to_file("hover", tmp_path / "hover.wav", voice="en-us+m7", speed=165)
     np.testing.assert_array_equal(read_wav(path), synthesize("hover", voice="en-us+m7", speed=165))
 
 
+@pytest.mark.espeak
 def test_speak_without_a_loudspeaker_returns_false_quickly(capsys):
     t = time.monotonic()
     played = speak("drone one is landing")
@@ -84,6 +88,7 @@ def test_speak_without_a_loudspeaker_returns_false_quickly(capsys):
         assert "cannot speak" in capsys.readouterr().err
 
 
+@pytest.mark.espeak
 def test_speak_through_espeak_audio_backend_does_not_hang(monkeypatch, capsys):
     """Even when PortAudio does not know better, espeak-ng's own failure (exit 0, ALSA error) is detected."""
     monkeypatch.setattr(synth, "_no_output_device", lambda: None)
