@@ -34,8 +34,9 @@ LANDED = (LANDED_ARMED, LANDED_DISARMED)
 # a real autopilot without a fix) refuses a take-off: the role waits this long (s of sim time) for it first.
 UAL_READY_TIME = 10.0
 # A take-off or landing the UAL accepted shows as TAKING_OFF or LANDING within this time (s of sim time); a
-# state that is still, or again, the one before means the UAL gave the manoeuvre up.
-UAL_ACCEPT_TIME = 2.0
+# state that is still the one before means the UAL gave the manoeuvre up. Seen again after TAKING_OFF or
+# LANDING, it means so at once. Generous: a state message may come late on a loaded machine.
+UAL_ACCEPT_TIME = 5.0
 # A path whose current waypoint comes no nearer by STALL_PROGRESS metres in STALL_TIME seconds is stuck (an
 # unreachable waypoint: inside an obstacle, or beyond what the airframe can turn into); it ends aborted.
 STALL_TIME, STALL_PROGRESS = 120.0, 0.1
