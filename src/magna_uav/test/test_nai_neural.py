@@ -4,17 +4,17 @@ import logging
 
 import numpy as np
 import pytest
+import torch  # pinned in requirements.txt: a missing torch fails these tests, it does not skip them
 
-torch = pytest.importorskip("torch")
+from magna_uav.nai.goal import Goal
+from magna_uav.nai.inputs import input_names, input_size, output_names
+from magna_uav.nai.interface import NavigationInterface
+from magna_uav.nai.neural import NeuralModelError, load_model, prepare_depth, spec_path
+from magna_uav.nai.orca import ReferenceSolver
+from magna_uav.world_view import AgentState, Obstacle, WorldView
+
 # torch 2.13 marks TorchScript deprecated; it is still the format the NAI flies
 pytestmark = pytest.mark.filterwarnings("ignore:`torch.jit.script` is deprecated:DeprecationWarning")
-
-from magna_uav.nai.goal import Goal  # noqa: E402
-from magna_uav.nai.inputs import input_names, input_size, output_names  # noqa: E402
-from magna_uav.nai.interface import NavigationInterface  # noqa: E402
-from magna_uav.nai.neural import NeuralModelError, load_model, prepare_depth, spec_path  # noqa: E402
-from magna_uav.nai.orca import ReferenceSolver  # noqa: E402
-from magna_uav.world_view import AgentState, Obstacle, WorldView  # noqa: E402
 
 
 class TowardsGoal(torch.nn.Module):
