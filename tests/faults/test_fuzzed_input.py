@@ -22,6 +22,7 @@ import subprocess
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -387,3 +388,44 @@ def test_an_outcome_map_condition_of_the_wrong_type_is_refused_with_its_path(tmp
     status, stderr = run_in_process(["mission", "check", str(file)])
     assert status == 2, stderr
     assert f"magna mission: {file}: State_Machine[5].occurrencies_outcome_map.completed.all: " in stderr, stderr
+
+
+# --- ground-station commands, in-process: planned or refused with a reason, nothing else --------------------------
+
+def test_fuzzed_operator_commands_are_planned_or_refused_with_a_reason(capsys):
+    from magna_gs.commands import MISSION_ACTIONS, CommandRefused, Param, UavStatus, plan_command
+
+    boundaries = np.array([[-10.0, 10.0], [-10.0, 10.0], [0.0, 8.0]])
+    uavs = {1: UavStatus(1, np.array([0.0, 0.0, 3.0])), 2: UavStatus(2, np.array([2.0, 0.0, 3.0]), math.nan),
+            3: UavStatus(3, None)}
+    known = [("mission", a) for a in MISSION_ACTIONS] + [("parameters", "get"), ("algorithms", "set")] + \
+        [("basic_action", a) for a in ("take_off", "land", "move", "turn", "follow")]
+    # A known command with, now and then, its intent or action replaced by any text.
+    commands = st.tuples(st.sampled_from(known), st.sampled_from(["", "intent", "action"]), TEXTS).map(
+        lambda c: (c[2] if c[1] == "intent" else c[0][0], c[2] if c[1] == "action" else c[0][1]))
+    agents = st.sampled_from(["1", "2", "3", "all", "7", "-1", "1e400", ""]) | TEXTS
+    words = st.sampled_from(["up", "left", "x", "right", "2", "uav_1", "simple", "orca3d", ""]) | TEXTS
+    numbers = st.sampled_from(NUMBERS[:6] + [2.0, -2.0, 1.5, 1e-9]) | st.floats(allow_nan=True, allow_infinity=True)
+    params = st.lists(st.builds(Param, st.sampled_from(["height", "distance", "angle", "direction", "target",
+                                                        "algorithm", "battery", "state", "position"]) | TEXTS,
+                                numbers, words, st.sampled_from(["", "m", "deg", "cm"])), max_size=4)
+    outcomes = {"planned": 0, "refused": 0}
+
+    @settings(max_examples=400, **PROFILE)
+    @given(commands, agents, params, st.sampled_from([(), (2,), (1, 2)]))
+    def case(command, agent, given_params, locked):
+        intent, action = command
+        try:
+            plan = plan_command(intent, action, agent, given_params, uavs, boundaries, locked=locked)
+        except CommandRefused as refusal:
+            assert str(refusal).strip(), "a refusal without a reason"
+            outcomes["refused"] += 1
+            return
+        outcomes["planned"] += 1
+        for order in plan.orders:  # what is sent is finite, inside the world and for a UAV the operator may command
+            assert order.uav_id not in locked, (order, locked)
+            assert all(math.isfinite(v) for v in order.fields.values() if isinstance(v, float)), order
+
+    case()
+    report(capsys, f"operator commands: {sum(outcomes.values())} cases through plan_command in-process ({outcomes})")
+    assert outcomes["planned"] and outcomes["refused"]

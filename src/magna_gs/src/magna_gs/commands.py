@@ -5,12 +5,15 @@ parameters) into a `CommandPlan`: action goals for UAV managers, an algorithm ch
 a mission pause or resume, or answers to a question. Every request is validated against
 what the ground station knows (the UAVs of the mission, their last pose, the world's
 boundaries); a bad one raises `CommandRefused` with the reason, and nothing is sent.
-Pure: the node executes the plan.
+A real UAV (Agents_Config mode real) takes no flight or algorithm command unless the mission
+allows it (`"Operator_Commands": {"allow_real": [ids] | "all"}`): a command for it, alone or
+among "all", is refused whole. Questions and mission-wide commands (standby, resume, critical)
+reach every UAV. Pure: the node executes the plan.
 """
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import cast
 
@@ -72,8 +75,9 @@ class CommandPlan:
 
 
 def plan_command(intent: str, action: str, agent: str, params: Sequence[Param], uavs: Mapping[int, UavStatus],
-                 boundaries: np.ndarray | None = None) -> CommandPlan:
-    """The plan for one command, or CommandRefused naming what is wrong."""
+                 boundaries: np.ndarray | None = None, locked: Collection[int] = ()) -> CommandPlan:
+    """The plan for one command, or CommandRefused naming what is wrong. `locked`: the real UAVs the mission does
+    not let the operator command (Mission.operator_locked_ids)."""
     intent, action = intent.strip(), action.strip()
     by_name = {p.name: p for p in params}
     if intent == "mission":
@@ -87,6 +91,7 @@ def plan_command(intent: str, action: str, agent: str, params: Sequence[Param], 
         if action != "get":
             raise CommandRefused(f"parameters action {action!r} is unknown: give get")
         return _answers(ids, by_name, uavs)
+    _refuse_locked(ids, locked)
     if intent == "algorithms":
         if action != "set":
             raise CommandRefused(f"algorithms action {action!r} is unknown: give set")
@@ -109,6 +114,17 @@ def _targets(agent: str, uavs: Mapping[int, UavStatus]) -> list[int]:
     if uav_id not in uavs:
         raise CommandRefused(f"UAV {uav_id} is not in this mission (UAVs: {', '.join(map(str, sorted(uavs)))})")
     return [uav_id]
+
+
+def _refuse_locked(ids: list[int], locked: Collection[int]) -> None:
+    """A flight or algorithm command for a real UAV the mission does not open to the operator: refused whole."""
+    refused = [uav_id for uav_id in ids if uav_id in locked]
+    if refused:
+        which = ", ".join(map(str, refused))
+        raise CommandRefused(f"{_who(refused)} {'is a real UAV' if len(refused) == 1 else 'are real UAVs'} and the "
+                             "mission does not allow operator commands for "
+                             f"{'it' if len(refused) == 1 else 'them'}; nothing was sent. To allow them, add "
+                             f"\"Operator_Commands\": {{\"allow_real\": [{which}]}} to the mission")
 
 
 def _who(ids: list[int]) -> str:
@@ -180,7 +196,7 @@ def _basic_action(action: str, uav_id: int, by_name, uavs, boundaries) -> Action
         target_param = by_name.get("target")
         if target_param is None:
             raise CommandRefused("parameter 'target' is missing: give the UAV to follow")
-        target = int(target_param.number) if not target_param.text else _parse_id(target_param.text)
+        target = _number_id(target_param.number) if not target_param.text else _parse_id(target_param.text)
         if target == uav_id:
             raise CommandRefused(f"UAV {uav_id} cannot follow itself")
         if target not in uavs:
@@ -190,6 +206,12 @@ def _basic_action(action: str, uav_id: int, by_name, uavs, boundaries) -> Action
             raise CommandRefused(f"follow distance {distance:g} m: give a positive distance")
         return ActionOrder(uav_id, "follow_agent_ad", {"target_id": target, "distance": distance, "duration": 0.0})
     raise CommandRefused(f"basic action {action!r} is unknown: give take_off, land, move, turn or follow")
+
+
+def _number_id(number: float) -> int:
+    if not (math.isfinite(number) and number == int(number)):
+        raise CommandRefused(f"target {number} is not a UAV id: give a whole number")
+    return int(number)
 
 
 def _parse_id(text: str) -> int:

@@ -511,7 +511,8 @@ class GroundStation:
         boundaries = rospy.get_param(WORLD_BOUNDARIES, None)
         try:
             plan = plan_command(req.intent, req.action, req.agent, params, self.uav_statuses(),
-                                None if boundaries is None else np.asarray(boundaries, dtype=float))
+                                None if boundaries is None else np.asarray(boundaries, dtype=float),
+                                locked=self.mission.operator_locked_ids)
             self._execute(plan)
         except CommandRefused as refusal:
             rospy.logwarn(f"command refused: {refusal}")

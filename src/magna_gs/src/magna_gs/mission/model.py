@@ -58,6 +58,9 @@ WORLD_ACTIONS: tuple[WorldAction, ...] = get_args(WorldAction)
 ExitType = Literal["time", "button"]  # what ends a wait
 EXIT_TYPES: tuple[ExitType, ...] = get_args(ExitType)
 FROM_HYPERPARAMETERS = "from_hyperparameters"
+# The mission's permission for operator commands (/magna/gs/command) to real UAVs: {"allow_real": [ids] | "all"}.
+OPERATOR_COMMANDS_KEY = "Operator_Commands"
+ALLOW_REAL = "allow_real"
 FROM_UTM = ("from utm", "from_utm")  # a follow_path whose path the UTM provides at run time
 
 
@@ -239,10 +242,17 @@ class Mission:
     agents: list[UavConfig]
     root: list[Node]  # State_Machine, in file order
     agents_key: str = "Agents_Config"  # the key the file used (legacy files: UAVs_Config)
+    operator_real_ids: tuple[int, ...] = ()  # Operator_Commands.allow_real: real UAVs the operator may command
 
     @property
     def agent_ids(self) -> list[int]:
         return [agent.id for agent in self.agents]
+
+    @property
+    def operator_locked_ids(self) -> frozenset[int]:
+        """The real UAVs the operator may not command: a command for them is refused unless the mission lists them
+        under Operator_Commands.allow_real (sitl and hil UAVs take commands without it)."""
+        return frozenset(a.id for a in self.agents if a.mode == "real" and a.id not in self.operator_real_ids)
 
     def nodes(self) -> Iterator[Node]:
         """Every node of the mission, depth first, in file order."""

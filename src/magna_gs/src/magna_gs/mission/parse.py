@@ -26,6 +26,7 @@ from magna_common.json_fields import (
 from magna_gs.mission.migrate import AGENTS_KEY, LEGACY_AGENTS_KEY, Migration
 from magna_gs.mission.model import (
     ACTION_TYPES,
+    ALLOW_REAL,
     CALLBACK_TYPES,
     CONTAINER_TYPES,
     EXIT_TYPES,
@@ -33,6 +34,7 @@ from magna_gs.mission.model import (
     FROM_UTM,
     IDS_VARS,
     NODE_TYPES,
+    OPERATOR_COMMANDS_KEY,
     WORLD_ACTIONS,
     AlgorithmControlParams,
     BasicMoveParams,
@@ -62,7 +64,7 @@ from magna_worlds.vocabulary import POSE_KINDS
 NODE_KEYS = ("type", "name", "state_type", "parameters", "outcomes", "ids", "ids_var", "occurrencies",
              "occurrencies_outcome_map", "outcome_cb", "child_termination_cb", "connector_outcome")
 UTM_KEY = "UTM"  # optional: the mission's own UTM flight plans (magna_gs.utm), or the name of a plan file
-TOP_KEYS = (AGENTS_KEY, "State_Machine", UTM_KEY)
+TOP_KEYS = (AGENTS_KEY, "State_Machine", UTM_KEY, OPERATOR_COMMANDS_KEY)
 
 
 class _Reader(JsonFields[None]):
@@ -95,7 +97,8 @@ def parse_mission(migration: Migration, source: str, airframe_dir: Path | None =
     for key in data:
         if key not in TOP_KEYS and key != LEGACY_AGENTS_KEY:  # both agent keys: _agents says so
             reader.fail(str(key), f"unknown key{did_you_mean(key, (*TOP_KEYS, LEGACY_AGENTS_KEY))}; a mission has "
-                                  f"{AGENTS_KEY} and State_Machine (and optionally {UTM_KEY}, its flight plans)")
+                                  f"{AGENTS_KEY} and State_Machine (and optionally {UTM_KEY}, its flight plans, and "
+                                  f"{OPERATOR_COMMANDS_KEY}, what the operator may command)")
     if UTM_KEY in data:
         _utm(reader, data)
     agents, agents_key = _agents(reader, airframe_dir)
@@ -110,7 +113,36 @@ def parse_mission(migration: Migration, source: str, airframe_dir: Path | None =
                 root.append(node)
     if not root:
         reader.complete = False
-    return Parsed(Mission(source, agents, root, agents_key), reader.warnings, reader.problems, reader.complete)
+    operator_real = _operator_commands(reader, data[OPERATOR_COMMANDS_KEY], agents) \
+        if OPERATOR_COMMANDS_KEY in data else ()
+    return Parsed(Mission(source, agents, root, agents_key, operator_real), reader.warnings, reader.problems,
+                  reader.complete)
+
+
+def _operator_commands(reader: _Reader, raw: Any, agents: list[UavConfig]) -> tuple[int, ...]:
+    """Operator_Commands {"allow_real": [ids] | "all"}: the real UAVs the operator may command (none without it)."""
+    key, usage = OPERATOR_COMMANDS_KEY, f'{{"{ALLOW_REAL}": [ids of real UAVs] or "all"}}'
+    obj = reader.object(raw, key, usage)
+    if obj is None:
+        return ()
+    for name in obj:
+        if name != ALLOW_REAL:
+            reader.fail(f"{key}.{name}", f"unknown key{did_you_mean(name, (ALLOW_REAL,))}; {key} is {usage}")
+    where, allowed = f"{key}.{ALLOW_REAL}", obj.get(ALLOW_REAL, [])
+    real = [a.id for a in agents if a.mode == "real"]
+    if allowed == "all":
+        return tuple(real)
+    if not isinstance(allowed, list) or not all(is_integer(i) for i in allowed):
+        reader.fail(where, f"expected a list of UAV ids or \"all\", got {describe(allowed)}")
+        return ()
+    modes = {a.id: a.mode for a in agents}
+    for index, uav_id in enumerate(allowed):
+        if uav_id not in modes:
+            reader.fail(f"{where}[{index}]", f"UAV {uav_id} is not in {AGENTS_KEY}; list real UAVs of this mission")
+        elif modes[uav_id] != "real":
+            reader.fail(f"{where}[{index}]", f"UAV {uav_id} is {modes[uav_id]}: the operator commands sitl and hil "
+                                             "UAVs without permission; list only real UAVs here")
+    return tuple(int(i) for i in allowed if i in real)
 
 
 def _utm(reader: _Reader, data: dict[str, Any]) -> None:
