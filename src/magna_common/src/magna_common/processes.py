@@ -105,6 +105,15 @@ def pid_alive(pid: int) -> bool:
         return False
 
 
+def process_state(pid: int) -> str | None:
+    """The state letter of `pid` in /proc (R running, S sleeping, T stopped, t traced, Z zombie...); None if gone."""
+    try:
+        with open(f"/proc/{pid}/stat") as stat:
+            return stat.read().rsplit(")", 1)[1].split()[0]
+    except (FileNotFoundError, ProcessLookupError, IndexError):
+        return None
+
+
 def ancestors(pid: int | None = None) -> set[int]:
     """`pid` (default: this process) and every process above it."""
     pid = os.getpid() if pid is None else pid

@@ -52,6 +52,9 @@ GS_STOP = "/magna/gs/stop"
 GS_CONTINUE = "/magna/gs/continue"
 GS_CRITICAL_EVENT = "/magna/gs/critical_event"
 GS_STATE_ACTUALIZATION = "/magna/gs/state_actualization"
+# Parameter: the mission's critical events (a list of {uav, event, sim_time, detail}), set by the ground
+# station just before it reports to the Master, which copies it into result.json.
+GS_CRITICAL_EVENTS = "/magna/gs/critical_events"
 
 SIM_SPAWN_MODEL = "/magna/sim/spawn_model"
 SIM_DELETE_MODEL = "/magna/sim/delete_model"
@@ -93,6 +96,11 @@ UAV_ACTIONS = ("take_off", "land", "basic_move", "follow_path", "follow_agent_ad
 def manager(uav_id: int | str, name: str = "") -> str:
     """`/magna/uav_{id}/{name}`: a UAV manager's actions, topics and services."""
     return f"/magna/uav_{uav_id}/{name}" if name else f"/magna/uav_{uav_id}"
+
+
+def manager_alive(uav_id: int | str) -> str:
+    """`/magna/uav_{id}/alive` (std_msgs/Float64): a manager's heartbeat, its simulated time (magna_common.liveness)."""
+    return manager(uav_id, "alive")
 
 
 def sm_topic(machine: str, kind: str) -> str:

@@ -68,6 +68,11 @@ class MissionActionState(State):
             return self._execute()
 
     def _execute(self) -> str:
+        # A lost manager (dead or frozen, see magna_common.liveness) answers nothing: its goals end at once.
+        lost = self.services.lost_manager(self.uav_id)
+        if lost is not None:
+            rospy.logerr(f"{self.where}: UAV {self.uav_id} {self.action} aborted: {lost.describe()}")
+            return "aborted"
         client = self.services.action_client(self.uav_id, self.action)
         while True:
             if not self.services.wait_while_paused(self.preempt_requested):
@@ -79,6 +84,9 @@ class MissionActionState(State):
                 return self._aborted(f"its goal could not be made: {error}")
             client.send_goal(goal)
             while not client.wait_for_result(rospy.Duration(POLL)):
+                if self.services.lost_manager(self.uav_id) is not None:  # the critical event of every UAV
+                    rospy.logerr(f"{self.where}: UAV {self.uav_id} {self.action}: its manager is lost")
+                    return "GS_critical_event"
                 if rospy.is_shutdown() or self.preempt_requested():
                     client.cancel_goal()
                     client.wait_for_result(rospy.Duration(2.0))

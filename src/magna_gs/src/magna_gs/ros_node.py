@@ -35,17 +35,19 @@ from magna_msgs.srv import (
     StateActualizationResponse,
 )
 from sensor_msgs.msg import BatteryState
-from std_msgs.msg import ColorRGBA, String
+from std_msgs.msg import ColorRGBA, Float64, String
 from std_srvs.srv import Trigger, TriggerResponse
 from uav_abstraction_layer.msg import State as UalState
 
 from magna_common.files import write_text_atomically
+from magna_common.liveness import CHECK_PERIOD, MANAGER_LOST, LivenessWatchdog, LostManager, describe_process
 from magna_common.processes import end_parent_launch, end_process_group
 from magna_common.records import Hyperparameters
 from magna_common.ros_names import (
     GS_COMMAND,
     GS_CONTINUE,
     GS_CRITICAL_EVENT,
+    GS_CRITICAL_EVENTS,
     GS_STATE_ACTUALIZATION,
     GS_STOP,
     HYPERPARAMETERS,
@@ -57,10 +59,12 @@ from magna_common.ros_names import (
     WORLD_DELETE,
     battery,
     manager,
+    manager_alive,
     ual,
 )
 from magna_gs.bag_recorder import BagRecorder, mission_topics
 from magna_gs.commands import CommandPlan, CommandRefused, Param, UavStatus, plan_command
+from magna_gs.critical_events import CriticalEvent, describe_all
 from magna_gs.factory import ActionClients, RosStateFactory, wait_sim_seconds, world_poses
 from magna_gs.mavlink_uavs import MavlinkUavError, MavlinkUavs
 from magna_gs.mission.build import build_machine
@@ -85,8 +89,12 @@ Services: /magna/gs/state_actualization (StateActualization, from the UAV manage
           /magna/gs/stop (std_srvs/Trigger: end the mission now, then finish as usual)
           /magna/gs/continue (std_srvs/Trigger: the operator's button for `wait` states)
 Topics:   /magna/gs/critical_event (std_msgs/String) to every UAV manager
+          /magna/uav_{id}/alive (std_msgs/Float64) from each manager: its heartbeat. A manager silent
+          for 0.6 simulated s whose process is gone or stopped is lost (magna_common.liveness): a
+          critical event names it, and its goals end at once (see magna_gs's README)
 Machine:  /magna/sm/mission/structure|status (magna_sm introspection)
-At the end: /magna/master/simulation_termination (SimulationTermination) when a Master serves it.
+At the end: /magna/master/simulation_termination (SimulationTermination) when a Master serves it,
+            after setting /magna/gs/critical_events (the events with their simulated times).
 
 Private parameters (defaults):
   ~mission_file (required)   the mission JSON
@@ -139,6 +147,15 @@ class GroundStationServices:
         self.mavlink: MavlinkUavs | None = None  # the bridges of the hil and real UAVs, when there are any
         self.setup_errors: list[str] = []  # why the mission could not start (a MAVLink vehicle not there)
         self.failed_actions = FailedActions()  # every action that ended aborted, with why (the states add them)
+        self.liveness = LivenessWatchdog(self._probe_manager)  # the managers' heartbeats
+
+    def _probe_manager(self, uav_id: int) -> str | None:
+        process = self.managers.get(uav_id)
+        return describe_process(process) if process is not None else None
+
+    def lost_manager(self, uav_id: int) -> LostManager | None:
+        """The loss of this UAV's manager, once the watchdog noticed it (its goals then end at once)."""
+        return self.liveness.lost(uav_id)
 
     # --- helpers the states use ------------------------------------------------------------
     def action_client(self, uav_id: int, action: str):
@@ -257,6 +274,7 @@ class GroundStationServices:
             self._start_manager(config.id)
         for config in agents:  # each manager is ready when its action servers answer
             self.clients.get(config.id, "take_off")
+            self.liveness.watch(config.id, rospy.get_time(), time.monotonic())
         self._wait_for_the_bag()
         return True
 
@@ -300,6 +318,8 @@ class GroundStationServices:
                    f"_mission_file:={self.mission_file}", f"_control_rate:={self.control_rate}"]
         if self.data_dir:
             command.append(f"_data_dir:={self.data_dir}")
+            if self.save_data:  # its rows reach the CSV as it flies: a manager that dies leaves them
+                command.append(f"_csv_stream:={self.csv_path(uav_id)}")
         output = self._child_output()
         self.managers[uav_id] = subprocess.Popen(command, start_new_session=True, stdout=output, stderr=output)
 
@@ -344,6 +364,11 @@ class GroundStationServices:
             return True
         ok = True
         for uav_id in ids:
+            if self.lost_manager(uav_id) is not None:
+                rospy.logerr(f"save_csv UAV {uav_id}: its manager is lost; {self.csv_path(uav_id)} holds the rows it "
+                             f"streamed until then")
+                ok = False
+                continue
             client = self.clients.get(uav_id, "save_csv")
             client.send_goal(actions.SaveCSVGoal(path=str(self.csv_path(uav_id))))
             client.wait_for_result(rospy.Duration(30.0))
@@ -355,7 +380,11 @@ class GroundStationServices:
 
     # --- the end --------------------------------------------------------------------------
     def stop_managers(self, grace: float = 10.0) -> None:
-        for uav_id in list(self.managers):
+        self.liveness.stop()  # they stop on purpose now
+        for uav_id, process in list(self.managers.items()):
+            if self.lost_manager(uav_id) is not None:  # dead or frozen: nothing to ask it
+                end_process_group(process, grace=0.2)
+                continue
             try:
                 rospy.wait_for_service(manager(uav_id, "die"), timeout=2.0)
                 rospy.ServiceProxy(manager(uav_id, "die"), Die)(save_data=False)
@@ -409,7 +438,7 @@ class GroundStation:
                                               float(rospy.get_param("~button_timeout", 0.0)), self.bag)
         # What a link-lost callback of the fleet's bridges touches exists before the fleet is loaded.
         self.statuses: dict[int, dict] = {c.id: {} for c in self.mission.agents}
-        self.critical_events: list[tuple[int, str]] = []
+        self.critical_events: list[CriticalEvent] = []
         self.lock = threading.Lock()
         self.critical = rospy.Publisher(GS_CRITICAL_EVENT, String, queue_size=1, latch=True)
         self._start_utm()
@@ -421,6 +450,9 @@ class GroundStation:
             rospy.Subscriber(ual(config.id, "state"), UalState, self._on_ual_state, config.id, queue_size=1)
             rospy.Subscriber(battery(config.id), BatteryState, self._on_battery, config.id,
                              queue_size=1)
+            rospy.Subscriber(manager_alive(config.id), Float64, self._on_beat, config.id, queue_size=1,
+                             tcp_nodelay=True)
+        self.liveness_timer = rospy.Timer(rospy.Duration(CHECK_PERIOD), self._check_liveness)
         self.service_handles = [
             rospy.Service(GS_STATE_ACTUALIZATION, StateActualization, self._on_state),
             rospy.Service(GS_COMMAND, GroundStationCommand, self._on_command),
@@ -458,8 +490,23 @@ class GroundStation:
         branch (the lost UAV's own autopilot holds or lands by its failsafe)."""
         rospy.logerr(f"UAV {uav_id}: MAVLink link lost: {text}")
         with self.lock:
-            self.critical_events.append((uav_id, "link_lost"))
+            self.critical_events.append(CriticalEvent(uav_id, "link_lost", rospy.get_time(), text))
         self.critical.publish(String(f"UAV {uav_id} MAVLink link lost: {text}"))
+
+    def _on_beat(self, msg: Float64, uav_id: int) -> None:
+        self.services.liveness.heard(uav_id, msg.data, time.monotonic())
+
+    def _check_liveness(self, _event) -> None:
+        for lost in self.services.liveness.check(rospy.get_time(), time.monotonic()):
+            self._on_manager_lost(lost)
+
+    def _on_manager_lost(self, lost: LostManager) -> None:
+        """A manager died or froze: a critical event for every UAV, so the mission takes its safety branch; the
+        lost UAV's goals end at once (factory.MissionActionState) instead of waiting for an answer."""
+        rospy.logerr(lost.describe())
+        with self.lock:
+            self.critical_events.append(CriticalEvent(lost.uav_id, MANAGER_LOST, lost.noticed_at, lost.cause))
+        self.critical.publish(String(lost.describe()))
 
     def _start_utm(self) -> None:
         """Start the UTM when the run names a plan or the mission flies UTM plans; a bad plan stops us here."""
@@ -495,7 +542,7 @@ class GroundStation:
                 return StateActualizationResponse(False, f"UAV {req.id} is not in this mission")
             self.statuses[req.id]["state"] = req.state
             if req.critical_event:
-                self.critical_events.append((req.id, req.critical_event))
+                self.critical_events.append(CriticalEvent(req.id, req.critical_event, rospy.get_time(), req.state))
         if req.critical_event:
             rospy.logwarn(f"UAV {req.id}: {req.critical_event} ({req.state})")
         return StateActualizationResponse(True, "")
@@ -591,13 +638,14 @@ class GroundStation:
                 message += f"; {what} failed: {error}"
         with self.lock:
             # one report per UAV per contact: two UAVs touching once count 2
-            collisions = sum(1 for _, event in self.critical_events if event == "collision")
+            collisions = sum(1 for e in self.critical_events if e.event == "collision")
             events = list(self.critical_events)
         success = outcome in SUCCESS_OUTCOMES and not events and not services.setup_errors
         if services.setup_errors:
             message += "; could not start: " + "; ".join(services.setup_errors)
         if events:
-            message += "; critical events: " + ", ".join(f"UAV {i} {e}" for i, e in events)
+            message += "; critical events: " + describe_all(events)
+        rospy.set_param(GS_CRITICAL_EVENTS, [e.as_record() for e in events])  # the Master copies it to result.json
         success, message = judge_actions(success, message, services.failed_actions.all())
         self._report(success, outcome, message, duration, collisions, wall)
         self.introspection.stop()

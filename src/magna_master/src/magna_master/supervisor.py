@@ -11,11 +11,14 @@ master). The supervisor
 2. starts COMMAND (by default `roslaunch magna_gs simulation.launch ...`) in its own
    process group, output to the --log file;
 3. waits for the termination call, the command's exit (a crash: it ended without calling),
-   the wall-clock --time-limit (then calls `/magna/gs/stop`, std_srvs/Trigger, when it is
-   served, and waits --stop-grace seconds more), or SIGINT/SIGTERM (interrupted);
+   roslaunch's word in the log that a required node died (a crash naming the node, e.g. the
+   simulator: launch_watch), the wall-clock --time-limit (then calls `/magna/gs/stop`,
+   std_srvs/Trigger, when it is served, and waits --stop-grace seconds more), or SIGINT/SIGTERM
+   (interrupted);
 4. ends the command's process group (SIGINT, SIGTERM, SIGKILL, --shutdown-timeout apart),
-   then kills any process still carrying this simulation's token (MAGNA_SIM_TOKEN in its
-   environment: nodes that roslaunch put in sessions of their own);
+   then ends any process still carrying this simulation's token (MAGNA_SIM_TOKEN in its
+   environment: nodes that roslaunch put in sessions of their own): SIGINT first, so that a
+   bag left recording is closed and readable, SIGKILL LEFTOVER_GRACE seconds later;
 5. writes result.json atomically (also right when the termination call arrives, before it
    is acknowledged).
 
@@ -44,6 +47,7 @@ from magna_common.processes import (
     kill_tagged,
     pid_alive,
     set_parent_death_signal,
+    tagged_processes,
 )
 from magna_common.records import (
     CRASHED,
@@ -53,10 +57,12 @@ from magna_common.records import (
     TIME_LIMIT,
     SimulationResult,
 )
-from magna_common.ros_names import GS_STOP, MASTER_TERMINATION
+from magna_common.ros_names import GS_CRITICAL_EVENTS, GS_STOP, MASTER_TERMINATION
 from magna_common.storage_tree import LOGS_DIR, RESULT_FILE
+from magna_master.launch_watch import RequiredDeath, RequiredDeathWatch
 
 STOP_RETRY = 0.2  # wall s between calls of the stop service while it is not served yet
+LEFTOVER_GRACE = 2.0  # wall s between SIGINT and SIGKILL to the processes left after the launch
 NODE_NAME = "magna_master_supervisor"
 
 
@@ -80,6 +86,23 @@ def _now() -> str:
     return datetime.datetime.now(datetime.UTC).isoformat(timespec="milliseconds")
 
 
+def end_tagged(token: str, exclude: set[int], grace: float = LEFTOVER_GRACE) -> list[str]:
+    """End every process still carrying the token: SIGINT (a bag closes, a node shuts down), SIGKILL after
+    `grace` for what is left (a frozen process). Describes each one ended."""
+    interrupted = tagged_processes(TOKEN_ENV, token, exclude)
+    for pid, _ in interrupted:
+        try:
+            os.kill(pid, signal.SIGINT)
+        except ProcessLookupError:
+            pass
+    deadline = time.monotonic() + grace
+    while interrupted and time.monotonic() < deadline and tagged_processes(TOKEN_ENV, token, exclude):
+        time.sleep(0.05)
+    killed = kill_tagged(token, exclude=exclude)
+    killed_pids = {description.split(" ", 1)[0] for description in killed}
+    return [f"{pid} {command[:200]} (SIGINT)" for pid, command in interrupted if str(pid) not in killed_pids] + killed
+
+
 # --- the supervisor without ROS ------------------------------------------------------------------------------
 
 @dataclass
@@ -93,6 +116,7 @@ class Termination:
     collisions: int
     wall_duration: float = 0.0  # wall s of the mission, start to end (0: not reported)
     setup_wall_duration: float = 0.0  # of those, wall s with the simulator paused for setup
+    critical_events: tuple[dict, ...] = ()  # the ground station's /magna/gs/critical_events
 
 
 class SupervisorCore:
@@ -126,6 +150,9 @@ class SupervisorCore:
         self._started: float | None = None
         self._started_at = _now()
         self.launch: subprocess.Popen | None = None
+        self._deaths = RequiredDeathWatch(self.log_path)
+        self._death: RequiredDeath | None = None  # a required node's death, noticed before any report
+        self._death_noticed: dict = {}  # when: "noticed_at" (UTC) and "noticed_after" (wall s from the start)
 
     # called from other threads ---------------------------------------------------------------------------------
 
@@ -169,6 +196,8 @@ class SupervisorCore:
 
         timed_out = gs_stop_called = False
         while True:
+            if self._noticed_a_death():
+                break
             if self.termination is not None or self._stop.is_set():
                 break
             if launch.poll() is not None:
@@ -195,14 +224,21 @@ class SupervisorCore:
             self._wake.clear()
 
         end_wall = time.monotonic() - self._started
-        if self.termination is not None and not self._stop.is_set():
+        if not timed_out and not self._stop.is_set():
+            self._noticed_a_death()  # the launch may have exited before its last words were read
+        if self._death is not None and not self._stop.is_set():
+            # roslaunch shuts the launch down by itself after a required node's death: give it the chance
+            self._wait(self.settle, lambda: launch.poll() is not None or self._stop.is_set())
+        elif self.termination is not None and not self._stop.is_set():
             # The ground station is required in simulation.launch: once it has reported and exited,
             # roslaunch ends the rest by itself. Give it that chance before forcing it.
             self._wait(self.settle, lambda: launch.poll() is not None or self._stop.is_set())
         end_process_group(launch, grace=self.shutdown_timeout)
-        leftovers = kill_tagged(self.token, exclude=ancestors()) if self.token else []
+        leftovers = end_tagged(self.token, exclude=ancestors()) if self.token else []
 
-        if self.termination is not None:
+        if self._death is not None:
+            kind = CRASHED
+        elif self.termination is not None:
             kind = TIME_LIMIT if timed_out else GROUND_STATION
         elif self._stop.is_set():
             kind = INTERRUPTED
@@ -213,6 +249,16 @@ class SupervisorCore:
         result = self._result(kind, launch.returncode, leftovers, gs_stop_called, timed_out, end_wall=end_wall)
         self._write(result)
         return result
+
+    def _noticed_a_death(self) -> bool:
+        """True once the launch log says a required node died before the ground station reported."""
+        if self._death is None and self.termination is None:
+            death = self._deaths.poll()
+            if death is not None:
+                start = self._started if self._started is not None else time.monotonic()
+                self._death_noticed = {"noticed_at": _now(), "noticed_after": round(time.monotonic() - start, 3)}
+                self._death = death
+        return self._death is not None
 
     def _wait(self, seconds: float, done: Callable[[], bool]) -> None:
         deadline = time.monotonic() + seconds
@@ -244,6 +290,12 @@ class SupervisorCore:
         elif kind == INTERRUPTED:
             success, outcome = False, INTERRUPTED
             message = "interrupted (Ctrl-C or SIGTERM) before the ground station reported"
+        elif kind == CRASHED and self._death is not None:
+            success, outcome = False, CRASHED
+            message = (f"{self._death.describe()}; noticed {self._death_noticed['noticed_after']:.2f} s after the "
+                       f"start, the simulation ended")
+            if reported is not None:
+                message += f"; the ground station then said: {reported.message}"
         elif kind == CRASHED:
             success, outcome = False, CRASHED
             tail = log_tail(self.log_path)
@@ -275,7 +327,18 @@ class SupervisorCore:
             ended_at=_now(),
             files=self._files(),
             final=True,
+            extra={**self.known.extra, **self._extra(reported)},
         )
+
+    def _extra(self, reported: Termination | None) -> dict:
+        """result.json's keys beyond SimulationResult's fields: the critical events, a required node's death."""
+        extra: dict = {}
+        if reported is not None:
+            extra["critical_events"] = [dict(event) for event in reported.critical_events]
+        if self._death is not None:
+            extra["died"] = {"node": self._death.node, "component": self._death.component,
+                             "detail": self._death.detail, "exit_code": self._death.exit_code, **self._death_noticed}
+        return extra
 
     def _files(self) -> tuple[str, ...]:
         if self.data_dir is None or not self.data_dir.is_dir():
@@ -369,10 +432,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     rospy.init_node(NODE_NAME, disable_signals=True)
 
     def handle(request):
+        try:  # set by the ground station just before it called
+            events = rospy.get_param(GS_CRITICAL_EVENTS, [])
+        except Exception:  # the master is going away: the message still names them
+            events = []
         acknowledged = core.on_termination(Termination(
             success=bool(request.success), outcome=request.outcome, message=request.message,
             sim_duration=float(request.sim_duration), collisions=int(request.collisions),
-            wall_duration=float(request.wall_duration), setup_wall_duration=float(request.setup_wall_duration)))
+            wall_duration=float(request.wall_duration), setup_wall_duration=float(request.setup_wall_duration),
+            critical_events=tuple(e for e in events if isinstance(e, dict)) if isinstance(events, list) else ()))
         return SimulationTerminationResponse(acknowledged=acknowledged)
 
     service = rospy.Service(MASTER_TERMINATION, SimulationTermination, handle)

@@ -1,6 +1,13 @@
 """The recorder: one row per control step of one UAV, kept in memory and written at save_csv /
 end of mission to one CSV per UAV (and, with the depth camera, one compressed npz of frames).
 
+With `stream_to(path)` the rows also go to a CSV as the UAV flies, so a manager that is killed
+leaves its rows up to the kill. Flush policy: a row is written (one write(2), nothing buffered in the
+process) as soon as it is final: at the next control step, or when its role ends and the role's
+outcome is in it. A SIGKILL loses at most the row of the step in progress; the kernel keeps the rest
+(no fsync: a power cut may lose the last seconds). save_csv to the same path rewrites the file whole,
+then streaming goes on appending to it. The depth frames are written at save_csv only.
+
 The column set is defined once, by `columns(other_ids, n_obstacles)`, and documented in the
 package README ("Recorder CSV columns"); mlr trains from these files, so change both together.
 Values: floats in shortest round-trip form ("nan" when unknown), flags 0/1, ids and UAL states
@@ -12,9 +19,11 @@ recorded (`LEGACY_MISSING`): those columns come back NaN.
 from __future__ import annotations
 
 import csv
+import io
 import math
 import os
 import re
+import threading
 from collections import Counter
 from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
@@ -73,6 +82,62 @@ def depth_path(csv_path: str | os.PathLike) -> Path:
     return csv_path.with_name(f"{csv_path.stem}_depth.npz")
 
 
+class RowStream:
+    """A recorder CSV that grows as rows become final: each `append` is one write(2) of whole lines, so
+    the file always ends on a complete row, whatever happens to the process afterwards."""
+
+    def __init__(self, path: str | os.PathLike, header: Sequence[str], overwrite: bool = False):
+        self.path = Path(path)
+        flags = os.O_WRONLY | os.O_CREAT | os.O_APPEND | (os.O_TRUNC if overwrite else os.O_EXCL)
+        try:
+            self._fd: int | None = os.open(self.path, flags, 0o666)  # the umask decides the mode
+        except FileExistsError:
+            raise FileExistsError(f"{self.path}: already exists; not streaming rows into it") from None
+        self.written = 0  # rows written so far, the header not counted
+        self.error = ""  # why streaming stopped (a write failed), "" while it goes on
+        self._lock = threading.Lock()
+        self._write_lines([list(header)])
+
+    def append(self, rows: Sequence[Sequence]) -> None:
+        with self._lock:
+            if self._fd is not None and rows:
+                self._write_lines([[_cell(v) for v in row] for row in rows])
+                self.written += len(rows)
+
+    def restart(self, written: int) -> None:
+        """The file was replaced whole (save_csv) holding `written` rows: go on appending to the new file."""
+        with self._lock:
+            if self._fd is None:
+                return
+            os.close(self._fd)
+            self._fd = None
+            try:
+                self._fd = os.open(self.path, os.O_WRONLY | os.O_APPEND)
+            except OSError as error:
+                self.error = f"{self.path}: cannot reopen it to go on streaming: {error.strerror or error}"
+                return
+            self.written = written
+
+    def close(self) -> None:
+        with self._lock:
+            if self._fd is not None:
+                os.close(self._fd)
+                self._fd = None
+
+    def _write_lines(self, lines: list[list]) -> None:
+        text = io.StringIO()
+        csv.writer(text, lineterminator="\n").writerows(lines)
+        data = memoryview(text.getvalue().encode("utf-8"))
+        assert self._fd is not None
+        try:
+            while data:
+                data = data[os.write(self._fd, data):]
+        except OSError as error:  # a full disk: the rows stay in memory for save_csv; streaming stops here
+            self.error = f"{self.path}: writing a row failed, streaming stopped: {error.strerror or error}"
+            os.close(self._fd)
+            self._fd = None
+
+
 class Recorder:
     """Rows of one UAV's control steps; see `columns` for what a row holds."""
 
@@ -93,6 +158,26 @@ class Recorder:
         # Called with each new row's index and {column: value} (the node publishes it as a
         # NavigationStep, so a bag carries the same numbers as the CSV).
         self.on_row = on_row
+        self.stream: RowStream | None = None  # the CSV the rows go to as they are final (stream_to)
+
+    def stream_to(self, path: str | os.PathLike, overwrite: bool = False) -> RowStream:
+        """Write rows to the CSV at `path` as they become final (see the module's flush policy), starting
+        with the header and the final rows already recorded. An existing file is refused (FileExistsError)
+        unless `overwrite`."""
+        if self.stream is not None:
+            self.stream.close()
+        self.stream = RowStream(path, self.columns, overwrite=overwrite)
+        self._stream_rows(final=False)
+        return self.stream
+
+    def _stream_rows(self, final: bool) -> None:
+        """Stream the rows not written yet; the last one only when `final` (its role has ended)."""
+        stream = self.stream
+        if stream is None:
+            return
+        end = len(self._rows) if final else len(self._rows) - 1
+        if end > stream.written:
+            stream.append(self._rows[stream.written:end])
 
     @property
     def rows(self) -> int:
@@ -178,6 +263,7 @@ class Recorder:
             self._last_depth = depth
             self._frames.append(frame)
             self._frame_rows.append(index)
+        self._stream_rows(final=False)  # the previous row is final now
         if self.on_row is not None:
             self.on_row(index, self.row(index))
         return index
@@ -187,6 +273,7 @@ class Recorder:
         if not self._rows:
             raise LookupError(f"recorder of UAV {self.uav_id}: no row to give the outcome {outcome!r}")
         self._rows[-1][-1] = str(outcome)
+        self._stream_rows(final=True)
 
     def save_csv(self, path: str | os.PathLike, overwrite: bool = False) -> Path:
         """Write every row to `path` (and the depth frames to `depth_path(path)` when depth is on).
@@ -210,9 +297,15 @@ class Recorder:
             if created_depth is not None:  # do not leave frames without their rows
                 created_depth.unlink(missing_ok=True)
             raise
+        if self.stream is not None and os.path.abspath(path) == os.path.abspath(self.stream.path):
+            self.stream.restart(len(self._rows))  # the file holds every row now; go on after them
         return path
 
     def clear(self) -> None:
+        """Drop every row and frame; a stream stops (its file keeps the rows it has)."""
+        if self.stream is not None:
+            self.stream.close()
+            self.stream = None
         self._rows.clear()
         self._frames.clear()
         self._frame_rows.clear()
@@ -351,5 +444,5 @@ def _parse(cell: str, kind: str):
     return float(cell)
 
 
-__all__ = ["DEFAULT_OBSTACLES", "GOAL_TARGET", "LEGACY_MISSING", "Recorder", "column_kind", "columns", "depth_path",
-           "read_csv", "read_depth"]
+__all__ = ["DEFAULT_OBSTACLES", "GOAL_TARGET", "LEGACY_MISSING", "Recorder", "RowStream", "column_kind", "columns",
+           "depth_path", "read_csv", "read_depth"]

@@ -22,6 +22,7 @@ from nav_msgs.msg import Path as PathMsg
 from std_msgs.msg import Float64, String
 
 from magna_common import ros_names as names
+from magna_common.liveness import BEAT_PERIOD
 from magna_sm import CBState, StateMachine
 from magna_sm.introspection import IntrospectionServer
 from magna_sm.simple_action import SimpleActionServer
@@ -49,7 +50,9 @@ Action servers (magna_msgs), under /magna/uav_{id}/:
   save_csv      write the recorder's rows to a CSV (goal.path, or ~data_dir/uav_{id}.csv)
   set_mission   an on-board mission: optional take-off, a path, optional landing (goal.mission_json)
 Services: /magna/uav_{id}/algorithm_control (AlgorithmControl), /magna/uav_{id}/die (Die)
-Topics:   /magna/uav_{id}/path/raw, /path/smoothed (nav_msgs/Path), /goal (PoseStamped);
+Topics:   /magna/uav_{id}/alive (std_msgs/Float64): its simulated time every 0.2 simulated s, the
+          heartbeat the ground station's watchdog listens to (magna_common.liveness);
+          /magna/uav_{id}/path/raw, /path/smoothed (nav_msgs/Path), /goal (PoseStamped);
           /magna/uav_{id}/navigation (NavigationStep): every recorded control step, as its CSV row
           (a new subscriber first gets the steps sent so far);
           listens to /magna/gs/critical_event (std_msgs/String; empty clears it) and
@@ -65,6 +68,8 @@ Private parameters (defaults):
   ~uav_ids ([~id])          without a mission file: the UAVs of the mission
   ~control_rate (10.0)      control steps per simulated second
   ~data_dir (~/.ros/magna)  where save_csv writes when its goal gives no path
+  ~csv_stream ("")          a CSV the rows go to as they are recorded (each flushed when final), so a
+                            killed manager leaves its rows; save_csv to it rewrites it whole. "" = none
   ~depth_camera (false)     record the depth image (/uav_{id}/camera/depth/image_raw)
   ~low_battery (0.15)       battery fraction below which a role ends with low_battery
   ~algorithm ("simple")     navigation algorithm at start: simple, orca3, neural_network
@@ -119,6 +124,12 @@ class UavManagerNode:
         self.role_number = 0  # roles flown so far; their steps carry it
         self.recorder = Recorder(self.uav_id, [c.id for c in settings.configs if c.id != self.uav_id],
                                  depth=settings.depth, on_row=self._publish_navigation)
+        self.written: set[Path] = set()  # CSVs this node wrote: save_csv may rewrite them
+        if settings.csv_stream is not None:
+            settings.csv_stream.parent.mkdir(parents=True, exist_ok=True)
+            self.recorder.stream_to(settings.csv_stream)  # FileExistsError: the node stops, naming the file
+            self.written.add(settings.csv_stream.resolve())
+        self._stream_error_told = False
         step_pub = rospy.Publisher(names.manager(self.uav_id, "control_step"), Float64, queue_size=1,
                                    tcp_nodelay=True)
         self.stepping = SteppingClock(rospy.get_time, rospy.Rate(settings.control_rate).sleep,
@@ -128,7 +139,8 @@ class UavManagerNode:
         self.desk = OrderDesk()
         self.pending: Order | None = None  # the order idle hands to the action's state
         self.reporter = ground_station_reporter(self.uav_id)
-        self.written: set[Path] = set()  # CSVs this node wrote: save_csv may rewrite them
+        self.alive = rospy.Publisher(names.manager_alive(self.uav_id), Float64, queue_size=1, tcp_nodelay=True)
+        self.beat: rospy.Timer | None = None
         self._critical_seen = ""
         self._plan_changed_at = float("-inf")  # sim time of the UTM's latest plan change for this UAV
 
@@ -280,6 +292,16 @@ class UavManagerNode:
             self.navigation.publish(navigation_msg(index, row, self.role_number))
         except rospy.ROSException:  # shutting down: the row is recorded all the same
             pass
+        stream = self.recorder.stream
+        if stream is not None and stream.error and not self._stream_error_told:
+            self._stream_error_told = True
+            rospy.logerr(f"UAV {self.uav_id}: {stream.error}; the rows stay in memory for save_csv")
+
+    def _beat(self, _event) -> None:
+        try:
+            self.alive.publish(Float64(rospy.get_time()))
+        except rospy.ROSException:  # shutting down
+            pass
 
     def _on_algorithm_control(self, req) -> AlgorithmControlResponse:
         try:
@@ -319,6 +341,8 @@ class UavManagerNode:
         return False
 
     def run(self) -> str:
+        # The heartbeat runs in simulated time from a timer of its own: a long step does not delay it.
+        self.beat = rospy.Timer(rospy.Duration(BEAT_PERIOD), self._beat)
         self.wait_for_own_pose()  # the action servers come up (the manager is "ready") only after it
         for server in self.servers.values():
             server.start()
@@ -331,6 +355,10 @@ class UavManagerNode:
             self.close()
 
     def close(self) -> None:
+        if self.beat is not None:
+            self.beat.shutdown()
+        if self.recorder.stream is not None:
+            self.recorder.stream.close()
         self.introspection.stop()
         for server in self.servers.values():
             server.shutdown()

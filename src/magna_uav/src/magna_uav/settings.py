@@ -27,6 +27,7 @@ class Settings:
     low_battery: float = 0.15
     algorithm: str = "simple"
     flies_networks: bool = False  # the mission names neural_network: torch is imported at start-up
+    csv_stream: Path | None = None  # the CSV the rows go to as the UAV flies (Recorder.stream_to); None: none
 
     @property
     def own(self) -> UavConfig:
@@ -88,5 +89,7 @@ def read_settings(param: Callable[[str, object], object]) -> Settings:
         raise SettingsError(f"~low_battery is {low}: give a battery fraction in [0, 1)")
     flies_networks = bool(mission_file) and "neural_network" in Path(mission_file).read_text(errors="replace")
     data_dir = Path(_path("~data_dir", param("~data_dir", str(_default_data_dir())))).expanduser()
+    stream = _path("~csv_stream", param("~csv_stream", ""))
     return Settings(uav_id, configs, rate, data_dir, bool(param("~depth_camera", False)), low,
-                    str(param("~algorithm", "simple")), flies_networks)
+                    str(param("~algorithm", "simple")), flies_networks,
+                    Path(stream).expanduser() if stream else None)
