@@ -5,6 +5,7 @@ import time
 import pytest
 
 from magna_sim.command_queue import CommandQueue, LoopStopped
+from tests.support import WAIT, wait_until
 
 
 class Loop:
@@ -57,21 +58,29 @@ def test_wait_for_times_out_and_forgets_the_check(loop):
     assert loop.queue._waiters == []
 
 
-def test_stop_releases_waiting_callers():
-    queue = CommandQueue()  # no loop: nothing would ever run
-    errors = []
+def test_stop_releases_every_waiting_caller_with_its_reason():
+    queue = CommandQueue()  # no loop: nothing would ever run a job or check a waiter
+    outcomes = {}
 
-    def call():
+    def call(name, request):
         try:
-            queue.run(lambda: 1)
+            outcomes[name] = request()
         except LoopStopped as err:
-            errors.append(err)
+            outcomes[name] = f"LoopStopped: {err}"
 
-    caller = threading.Thread(target=call)
-    caller.start()
-    time.sleep(0.05)
+    callers = [threading.Thread(target=call, args=("run", lambda: queue.run(lambda: 1)), daemon=True),
+               threading.Thread(target=call, args=("wait_for", lambda: queue.wait_for(lambda: None)), daemon=True)]
+    for caller in callers:
+        caller.start()
+    wait_until(lambda: len(queue._jobs) == 1 and len(queue._waiters) == 1, "both callers to be queued")
+    tickets = [queue._jobs[0], queue._waiters[0]]
     queue.stop("bye")
-    caller.join(timeout=5)
-    assert not caller.is_alive() and len(errors) == 1
+    # Released by stop() itself, before it returns: not later by a caller noticing that the loop stopped.
+    assert all(ticket.done.is_set() and isinstance(ticket.error, LoopStopped) for ticket in tickets)
+    for caller in callers:
+        caller.join(timeout=WAIT)
+    assert outcomes == {"run": "LoopStopped: bye", "wait_for": "LoopStopped: bye"}
     with pytest.raises(LoopStopped):
         queue.run(lambda: 1)
+    with pytest.raises(LoopStopped):
+        queue.wait_for(lambda: 1)
