@@ -302,10 +302,27 @@ class UavManagerFlights(unittest.TestCase):
         # One row per control step: at 10 Hz of sim time, consecutive rows of a role are 0.1 s apart.
         within_roles = steps[steps < 0.5]
         # Rows in time order, at the 10 Hz period. How many steps land exactly on time depends on
-        # the machine's load at rtf max (a late step may even share its /clock tick with the next),
-        # so only the median is held to the period.
+        # the machine's load (a late step may even share its /clock tick with the next), so the
+        # median is held to the period, and every role's rows are checked below.
         self.assertTrue(np.all(steps >= 0), "rows out of time order")
         self.assertAlmostEqual(float(np.median(within_roles)), 0.1, delta=0.01)
+        # Every row, role by role: a role's last step is marked with its outcome, so the outcomes cut the
+        # rows into the roles flown. Each role's rows carry its name, and there are never more of them
+        # than control steps fit in its time (the rate's first step, at once, and one late step that
+        # catches up make the +3): a row written twice, or one written between roles, breaks this. That
+        # no step goes without its row is test_manager.py's exact count (on a simulated clock).
+        runs, run = [], []
+        for row in rows:
+            run.append(row)
+            if row["outcome"]:
+                runs.append(run)
+                run = []
+        self.assertEqual(run, [], "rows after the last role's outcome: written while no role flew")
+        for number, run in enumerate(runs):
+            self.assertEqual({r["role"] for r in run}, {run[0]["role"]}, f"role {number}: one role per run")
+            span = run[-1]["time"] - run[0]["time"]
+            self.assertLessEqual(len(run) - 1, span / 0.1 + 3, f"role {number} ({run[0]['role']}): "
+                                 f"{len(run)} rows in {span:.2f} s at 10 steps/s")
         self.assertIn("obs0.name", header)
         self.assertTrue(any(r["obs0.name"] for r in rows), "the world's obstacle is seen")
         roles = {r["role"] for r in rows}
