@@ -12,6 +12,7 @@ from magna_common.records import SimulationResult
 from magna_common.ros_names import GS_STOP, MASTER_TERMINATION
 from magna_master import supervisor as sv
 from magna_master.supervisor import SupervisorCore, Termination
+from tests.support import WAIT, wait_until
 
 SLEEPER = [sys.executable, "-c", "import time; time.sleep(600)"]
 
@@ -33,26 +34,49 @@ def written(tmp_path):
     return SimulationResult.read(tmp_path / "result.json")
 
 
+def in_background(core):
+    """Run `core` in a thread; its result lands in the returned dict under "result"."""
+    outcome = {}
+    thread = threading.Thread(target=lambda: outcome.setdefault("result", core.run()), daemon=True)
+    thread.start()
+    return thread, outcome
+
+
+def launch_log_says(tmp_path, text):
+    log = tmp_path / "logs" / "launch.log"
+    return log.is_file() and text in log.read_text()
+
+
 def test_the_ground_station_report_is_the_result(tmp_path, leak_token):
     core = core_for(tmp_path, SLEEPER)
-    acknowledged = []
+    acknowledged, moments = [], {}
 
     def report():
+        wait_until(lambda: core.launch is not None, "the launch to start")
+        moments["launched"] = time.monotonic()  # the run's clock started before this
+        time.sleep(0.5)  # the scenario, not a synchronisation: the ground station reports half a second in
+        moments["reporting"] = time.monotonic()
         acknowledged.append(core.on_termination(Termination(True, "succeeded", "all good", 42.5, 0)))
+        moments["reported"] = time.monotonic()
         # Recorded before it is acknowledged: result.json exists already, marked not final.
         acknowledged.append(written(tmp_path).final)
 
-    later(0.5, report)
-    started = time.monotonic()
+    threading.Thread(target=report, daemon=True).start()
+    moments["run"] = time.monotonic()  # the run's clock starts after this
     result = core.run()
+    moments["returned"] = time.monotonic()
     assert acknowledged == [True, False]
     assert result == written(tmp_path)
     assert result.termination == sv.GROUND_STATION and result.final is True
     assert (result.success, result.outcome, result.message) == (True, "succeeded", "all good")
     assert (result.sim_duration, result.collisions, result.id, result.seed) == (42.5, 0, 4, 9)
-    assert 0.4 < result.wall_time < 2.0
+    # The wall time runs from the launch to the report (rounded to ms), not to the end of the shutdown that
+    # followed: the settle time alone, waited for a launch that does not end, comes after the report.
+    rounding = 0.0005
+    assert moments["reporting"] - moments["launched"] - rounding <= result.wall_time
+    assert result.wall_time <= moments["reported"] - moments["run"] + rounding
+    assert moments["returned"] - moments["reporting"] >= core.settle
     assert result.launch_exit_code is not None and not sv.pid_alive(result.launch_pid)
-    assert time.monotonic() - started < 10
 
 
 def test_a_second_report_does_not_replace_the_first(tmp_path, leak_token):
@@ -64,10 +88,22 @@ def test_a_second_report_does_not_replace_the_first(tmp_path, leak_token):
 
 
 def test_a_launch_that_ends_by_itself_after_reporting_is_not_killed(tmp_path, leak_token):
-    core = core_for(tmp_path, [sys.executable, "-c", "import time; time.sleep(0.8)"], settle=5.0)
-    later(0.2, lambda: core.on_termination(Termination(True, "succeeded", "", 1.0, 0)))
-    result = core.run()
-    assert result.launch_exit_code == 0  # it exited on its own within the settle time
+    reported = tmp_path / "reported"
+    # The launch ends by itself once the report is in (as roslaunch does when the ground station exits).
+    launch = [sys.executable, "-c", f"import os, time\nwhile not os.path.exists({str(reported)!r}): time.sleep(0.01)"]
+    core = core_for(tmp_path, launch, settle=600.0)  # forcing it would take the whole settle time
+
+    def report():
+        wait_until(lambda: core.launch is not None, "the launch to start")
+        core.on_termination(Termination(True, "succeeded", "", 1.0, 0))
+        reported.touch()
+
+    threading.Thread(target=report, daemon=True).start()
+    thread, outcome = in_background(core)
+    wait_until(lambda: not thread.is_alive(), "the run to end once the launch ended by itself", timeout=5 * WAIT)
+    result = outcome["result"]
+    assert result.termination == sv.GROUND_STATION
+    assert result.launch_exit_code == 0  # it exited on its own within the settle time, not by a signal
 
 
 def test_a_launch_that_exits_without_reporting_crashed(tmp_path, leak_token):
@@ -92,11 +128,12 @@ def test_the_time_limit_asks_the_ground_station_to_stop_then_ends_it(tmp_path, l
 
 
 def test_a_ground_station_that_reports_when_stopped_keeps_its_outcome(tmp_path, leak_token):
-    core = core_for(tmp_path, SLEEPER, time_limit=0.3, stop_grace=5.0)
+    # A grace period no test could wait out: the run ends only if the report ends the grace period early.
+    core = core_for(tmp_path, SLEEPER, time_limit=0.3, stop_grace=600.0)
     core.stop_ground_station = lambda: core.on_termination(Termination(False, "preempted", "stopped", 7.0, 0))
-    started = time.monotonic()
-    result = core.run()
-    assert time.monotonic() - started < 4.0  # the report ends the grace period early
+    thread, outcome = in_background(core)
+    wait_until(lambda: not thread.is_alive(), "the report to end the grace period", timeout=5 * WAIT)
+    result = outcome["result"]
     assert (result.termination, result.outcome, result.sim_duration) == (sv.TIME_LIMIT, "preempted", 7.0)
     assert "stopped" in result.message and not result.success
 
@@ -130,9 +167,14 @@ def test_a_stop_request_interrupts(tmp_path, leak_token):
 
 def test_a_launch_that_ignores_sigint_and_sigterm_is_killed(tmp_path, leak_token):
     deaf = [sys.executable, "-c", "import signal, time; signal.signal(signal.SIGINT, signal.SIG_IGN); "
-            "signal.signal(signal.SIGTERM, signal.SIG_IGN); time.sleep(600)"]
+            "signal.signal(signal.SIGTERM, signal.SIG_IGN); print('deaf', flush=True); time.sleep(600)"]
     core = core_for(tmp_path, deaf, shutdown_timeout=0.5)
-    later(0.3, core.request_stop)
+
+    def stop_once_deaf():  # a stop before the handlers are in would end it by SIGINT, proving nothing
+        wait_until(lambda: launch_log_says(tmp_path, "deaf"), "the launch to ignore SIGINT and SIGTERM")
+        core.request_stop()
+
+    threading.Thread(target=stop_once_deaf, daemon=True).start()
     result = core.run()
     assert result.launch_exit_code == -signal.SIGKILL
 
@@ -144,7 +186,12 @@ def test_processes_in_sessions_of_their_own_are_found_by_the_token(tmp_path, lea
     script = ("import subprocess, sys, time; p = subprocess.Popen([sys.executable, '-c', 'import time; "
               "time.sleep(600)'], start_new_session=True); print(p.pid, flush=True); time.sleep(600)")
     core = core_for(tmp_path, [sys.executable, "-c", script], token=token)
-    later(1.0, lambda: core.on_termination(Termination(True, "succeeded", "", 1.0, 0)))
+
+    def report_once_the_child_runs():  # its pid in the log: the child exists
+        wait_until(lambda: launch_log_says(tmp_path, "\n"), "the launch to start its child")
+        core.on_termination(Termination(True, "succeeded", "", 1.0, 0))
+
+    threading.Thread(target=report_once_the_child_runs, daemon=True).start()
     result = core.run()
     orphan = int((tmp_path / "logs" / "launch.log").read_text().split()[0])
     assert not sv.pid_alive(orphan)
