@@ -170,7 +170,7 @@ def _basic_action(action: str, uav_id: int, by_name, uavs, boundaries) -> Action
             raise CommandRefused(f"take-off height {height:g} m: give a positive height")
         top = _where(uav) + [0.0, 0.0, height]
         if not _inside(boundaries, top):
-            raise CommandRefused(f"UAV {uav_id} taking off {height:g} m would reach z = {top[2]:.1f} m, above the "
+            raise CommandRefused(f"UAV {uav_id} taking off {height:g} m would reach z = {top[2]:.6g} m, above the "
                                  f"world's ceiling of {boundaries[2, 1]:g} m")
         return ActionOrder(uav_id, "take_off", {"height": height})
     if action == "land":
@@ -181,7 +181,7 @@ def _basic_action(action: str, uav_id: int, by_name, uavs, boundaries) -> Action
         target = _where(uav) + _offset(direction, distance, uav.yaw)
         if not _inside(boundaries, target):
             raise CommandRefused(f"UAV {uav_id} moving {distance:g} m {direction} would leave the world: "
-                                 f"({', '.join(f'{v:.1f}' for v in target)}) is outside its boundaries")
+                                 f"({', '.join(f'{v:.6g}' for v in target)}) is outside its boundaries")
         return ActionOrder(uav_id, "basic_move", _move_goal(direction, distance))
     if action == "turn":
         angle = _number(by_name, "angle", "deg")

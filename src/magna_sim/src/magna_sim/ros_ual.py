@@ -112,10 +112,12 @@ class UalServer:
 
     # --- streamed setpoints ----------------------------------------------------------------------------------
     def on_set_pose(self, msg: PoseStamped) -> None:
+        boundaries = self._world_boundaries()
         try:
             # Converted in the loop: the home frame moves with set_home, which runs there too.
-            self.queue.run(lambda: self.logic.set_pose(self._to_map(msg.header.frame_id, msg.pose.position),
-                                                       quaternion_yaw(msg.pose.orientation)))
+            self.queue.run(lambda: self._within(boundaries).set_pose(self._to_map(msg.header.frame_id,
+                                                                                  msg.pose.position),
+                                                                     quaternion_yaw(msg.pose.orientation)))
         except (CommandRefused, LoopStopped) as err:
             rospy.logwarn_throttle(2.0, f"{names.ual(self.uav_id, 'set_pose')} ignored: {err}")
 
@@ -132,7 +134,8 @@ class UalServer:
 
     # --- services --------------------------------------------------------------------------------------------
     def take_off(self, req):
-        self._command("take_off", lambda: self.logic.take_off(req.height),
+        boundaries = self._world_boundaries()
+        self._command("take_off", lambda: self._within(boundaries).take_off(req.height),
                       req.blocking, lambda: self.logic.state == UalState.FLYING_AUTO)
         return TakeOffResponse()
 
@@ -142,16 +145,18 @@ class UalServer:
 
     def go_to_waypoint(self, req):
         pose = req.waypoint.pose
+        boundaries = self._world_boundaries()
         self._command("go_to_waypoint",
-                      lambda: self.logic.go_to(self._to_map(req.waypoint.header.frame_id, pose.position),
-                                               quaternion_yaw(pose.orientation)),
+                      lambda: self._within(boundaries).go_to(self._to_map(req.waypoint.header.frame_id, pose.position),
+                                                             quaternion_yaw(pose.orientation)),
                       req.blocking, self.logic.reached)
         return GoToWaypointResponse()
 
     def go_to_waypoint_geo(self, req):
         fix = req.waypoint
         position = self._service_guard("go_to_waypoint_geo", lambda: self._geo_to_map(fix))
-        self._command("go_to_waypoint_geo", lambda: self.logic.go_to(position, self.logic.vehicle.yaw),
+        boundaries = self._world_boundaries()
+        self._command("go_to_waypoint_geo", lambda: self._within(boundaries).go_to(position, self.logic.vehicle.yaw),
                       req.blocking, self.logic.reached)
         return GoToWaypointGeoResponse()
 
@@ -190,6 +195,19 @@ class UalServer:
         except (ValueError, LoopStopped) as err:  # CommandRefused is a ValueError
             rospy.logerr(f"{names.ual(self.uav_id, name)}: {err}")
             raise rospy.ServiceException(str(err)) from None
+
+    # --- the world's boundaries ----------------------------------------------------------------------------------
+    def _world_boundaries(self) -> np.ndarray | None:
+        """The world's boundaries as the world node set them, or None before a world is there. Cached by rospy and
+        kept current by the master's parameter updates: cheap enough for every streamed set-point."""
+        value = rospy.get_param_cached(names.WORLD_BOUNDARIES, None)  # an unset parameter may read as {}
+        box = np.asarray(value, dtype=float) if isinstance(value, list) else None
+        return box if box is not None and box.shape == (3, 2) else None
+
+    def _within(self, boundaries: np.ndarray | None) -> UalLogic:
+        """The UAV's logic, checking position targets against `boundaries` (run in the loop, like the command)."""
+        self.logic.boundaries = boundaries
+        return self.logic
 
     # --- frames ----------------------------------------------------------------------------------------------
     def _to_map(self, frame_id: str, point) -> np.ndarray:

@@ -4,7 +4,9 @@
 
 Commands are checked here and refused with `CommandRefused` (the message says
 why and what state would accept it); the ROS layer turns that into a failed
-service call. `update` advances the machine after each physics step.
+service call. Numbers must be finite, and a position target (take_off, go_to_waypoint,
+set_pose) must lie inside the world's boundaries once the ROS layer knows them
+(`boundaries`, from the world node's /magna/world/boundaries). `update` advances the machine after each physics step.
 Every accepted command bumps `command_id`, so a blocking call can tell when a
 newer command took its place.
 
@@ -67,6 +69,7 @@ class UalLogic:
         self._last_velocity_time = 0.0
         self._time = 0.0
         self._approach: Arrival | None = None  # the take-off or waypoint being flown to, if any
+        self.boundaries: np.ndarray | None = None  # the world's [[xmin, xmax], [ymin, ymax], [zmin, zmax]], if known
         # A blocking call must never return farther out than MAGNA's own idea of "there".
         self.arrival_radius = min(settings.position_th / 2.0, vehicle.airframe.accepted_target_radius)
 
@@ -77,6 +80,7 @@ class UalLogic:
             raise CommandRefused(f"take_off: height must be positive, got {height}")
         self._require(UalState.LANDED_ARMED, "take_off")
         target = self.vehicle.position + np.array([0.0, 0.0, height])
+        self._require_inside(f"take_off to {height:g} m", target)
         self._command(Setpoint(SetpointMode.POSITION, position=target, yaw=self.vehicle.yaw,
                                max_vertical_speed=self.settings.take_off_speed, manoeuvre=Manoeuvre.TAKE_OFF))
         self._watch()
@@ -90,6 +94,7 @@ class UalLogic:
         position = finite_vector("waypoint.pose.position", position)
         require_finite("waypoint orientation (yaw)", yaw)
         self._require(UalState.FLYING_AUTO, "go_to_waypoint")
+        self._require_inside("go_to_waypoint", position)
         self._command(Setpoint(SetpointMode.POSITION, position=position, yaw=yaw))
         self._watch()
 
@@ -102,6 +107,7 @@ class UalLogic:
         position = finite_vector("set_pose position", position)
         require_finite("set_pose orientation (yaw)", yaw)
         self._require(UalState.FLYING_AUTO, "set_pose")
+        self._require_inside("set_pose", position)
         self._command(Setpoint(SetpointMode.POSITION, position=position, yaw=yaw))
 
     def set_velocity(self, velocity, yaw_rate: float) -> None:
@@ -171,6 +177,15 @@ class UalLogic:
         if self.state != state:
             raise CommandRefused(f"{command} refused: UAV {self.vehicle.uav_id} is {self.state.name}; "
                                  f"{command} needs {state.name}")
+
+    def _require_inside(self, command: str, target: np.ndarray) -> None:
+        """A position target beyond the world (a typo, 1e6 m away) is refused, not flown toward."""
+        box = self.boundaries
+        if box is not None and not bool(np.all(target >= box[:, 0]) and np.all(target <= box[:, 1])):
+            limits = ", ".join(f"{axis} {low:g}..{high:g}" for axis, (low, high) in zip("xyz", box.tolist(),
+                                                                                       strict=True))
+            raise CommandRefused(f"{command} refused: the target ({', '.join(f'{v:.6g}' for v in target)}) is outside "
+                                 f"the world's boundaries ({limits} m); give a target inside them")
 
     def _start_landing(self) -> None:
         # Aim below the floor so the descent never stalls just above it; touching down ends it.
