@@ -1,5 +1,7 @@
 """The recognisers: the offline one, restricted to a corpus of commands, transcribes synthetic speech of them;
 the online one fails with a clear message when Google cannot be reached."""
+import time
+
 import numpy as np
 import pytest
 
@@ -54,11 +56,17 @@ def recognizer(tmp_path_factory):
 
 @pytest.mark.espeak
 def test_the_offline_recogniser_transcribes_synthetic_commands(recognizer):
-    transcripts = [recognizer.transcribe(speak(s)) for s in SPOKEN]
+    transcripts, took = [], []
+    for sentence in SPOKEN:
+        audio = speak(sentence)
+        started = time.monotonic()
+        transcripts.append(recognizer.transcribe(audio))
+        took.append(time.monotonic() - started)
     right = [s for s, t in zip(SPOKEN, transcripts, strict=True) if t.text == s]
     assert len(right) >= 8, [(s, t.text) for s, t in zip(SPOKEN, transcripts, strict=True) if t.text != s]
-    for t in transcripts:
-        assert isinstance(t, Transcript) and 0 < t.seconds < 5
+    for t, seconds in zip(transcripts, took, strict=True):
+        # the time it reports is the call's own (how long that is: bench/voice_accuracy.py, "decode")
+        assert isinstance(t, Transcript) and 0 < t.seconds <= seconds
         assert t.alternatives[0] == t.text and len(set(t.alternatives)) == len(t.alternatives) <= MAX_ALTERNATIVES
         assert all(a == " ".join(a.split()) and set(a.split()) <= set(recognizer.speech_model.words)
                    for a in t.alternatives)
