@@ -104,10 +104,17 @@ def test_a_waypoint_out_of_reach_fails_as_not_reached(sim):
 
 
 def test_dynamic_model_flies_through_the_same_api(fresh_ros_master):
+    """take_off, go_to_waypoint (with a heading), set_velocity and land: what test_fly_a_uav_by_hand flies."""
     node = start_sim(fresh_ros_master, "_flight_model:=dynamic", "_model:=typhoon_h480")
     code, text = fly(fresh_ros_master, "--id", "1", "take_off", "1.5")
     assert code == 0 and "uav 1: FLYING_AUTO" in text
     assert math.dist(printed_position(text), (0.0, -1.0, 1.5)) <= ARRIVAL_RADIUS
+    code, text = fly(fresh_ros_master, "--id", "1", "go_to", "3", "-1", "2.5", "--yaw", "90")
+    assert code == 0 and "uav 1: FLYING_AUTO" in text
+    assert math.dist(printed_position(text), (3.0, -1.0, 2.5)) <= ARRIVAL_RADIUS
+    code, text = fly(fresh_ros_master, "--id", "1", "velocity", "0", "0.5", "0", "--duration", "2")
+    assert code == 0
+    assert -0.4 < printed_position(text)[1] < 0.4  # about 1 m further along y
     code, text = fly(fresh_ros_master, "--id", "1", "land")
     assert code == 0 and "uav 1: LANDED_ARMED" in text and printed_position(text)[2] < 0.05
     assert node.poll() is None
