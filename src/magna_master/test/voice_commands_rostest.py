@@ -5,7 +5,8 @@ Gym/Operator_Control waits for the operator with both UAVs on their pads. Typed:
 please take off to two meters" must lift UAV 1 to about 2 m. Spoken: the test makes a WAV of
 "drone one, go up two meters" with espeak-ng and runs the assistant node on it as an operator
 would (rosrun magna_master voice --audio FILE); UAV 1 must climb 2 m more. A sentence without a
-UAV gets a question and sends nothing; the battery is answered; "resume" lets the mission land.
+UAV gets a question and sends nothing; the battery is answered; "resume" lets the mission land:
+UAV 1 comes down and the mission ends completed through its nominal landing.
 """
 import os
 import subprocess
@@ -39,9 +40,15 @@ def wall_wait(predicate, what, seconds):
 
 class VoiceCommands(unittest.TestCase):
     def test_typed_and_spoken_commands_fly_the_mission(self):
-        seen = {"states": set(), "z": None}
-        rospy.Subscriber("/magna/sm/mission/status", SMStatus,
-                         lambda msg: seen["states"].update(msg.active_states) if msg.path == "/MISSION" else None)
+        seen = {"states": set(), "z": None, "end": ""}
+
+        def on_status(msg):
+            if msg.path == "/MISSION":
+                seen["states"].update(msg.active_states)
+                if msg.info.startswith("finished:"):
+                    seen["end"] = msg.info
+
+        rospy.Subscriber("/magna/sm/mission/status", SMStatus, on_status)
         rospy.Subscriber("/uav_1/ual/pose", PoseStamped, lambda msg: seen.update(z=msg.pose.position.z))
         wall_wait(lambda: "operator_control" in seen["states"], "the mission to wait for the operator", 120)
         client = GroundStationClient()
@@ -83,6 +90,13 @@ class VoiceCommands(unittest.TestCase):
         self.assertTrue(0 < battery.reply.values[0].number <= 100)
 
         self.assertTrue(assistant.handle_text("okay, carry on with the mission").reply.accepted)
+        # resumed, the mission takes its nominal end: every UAV lands (UAV 1 comes down from 4 m; UAV 2
+        # never left its pad), the CSVs are saved, the world deleted, and the mission ends completed
+        wall_wait(lambda: seen["z"] < ground + 0.1, "UAV 1 to land", 90)
+        wall_wait(lambda: seen["end"], "the mission to end", 90)
+        self.assertEqual(seen["end"], "finished:completed")
+        self.assertTrue({"1_land", "save_csv", "delete_world"} <= seen["states"], seen["states"])
+        self.assertNotIn("1_safety_hover", seen["states"])
 
 
 if __name__ == "__main__":
