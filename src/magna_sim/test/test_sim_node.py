@@ -58,6 +58,18 @@ def printed_position(text):
     return tuple(float(v) for v in text.split("(")[1].split(")")[0].split(","))
 
 
+def position_at_rest(master, uav_id):
+    """The position `fly state` prints twice in a row (each call spans simulated seconds): the UAV holds it."""
+    readings = []
+
+    def at_rest():
+        readings.append(printed_position(fly(master, "--id", str(uav_id), "state")[1]))
+        return len(readings) >= 2 and math.dist(readings[-1], readings[-2]) <= 0.01
+
+    wait_until(at_rest, f"UAV {uav_id} to hold its position", timeout=120, poll=0)
+    return readings[-1]
+
+
 def test_fly_a_uav_by_hand(sim):
     assert fly(sim, "--id", "2", "state")[1].strip().startswith("uav 2: LANDED_ARMED at (0.00, 1.00, 0.00)")
     code, text = fly(sim, "--id", "2", "take_off", "2")
@@ -67,7 +79,14 @@ def test_fly_a_uav_by_hand(sim):
     assert math.dist(printed_position(text), (3.0, 1.0, 2.5)) <= ARRIVAL_RADIUS
     code, text = fly(sim, "--id", "2", "velocity", "0", "0.5", "0", "--duration", "2")
     assert code == 0
-    assert 1.6 < printed_position(text)[1] < 2.4  # about 1 m further along y
+    streamed = printed_position(text)  # read once the stream of set-points ended
+    rest = position_at_rest(sim, 2)
+    # 0.5 m/s along y for 2 s of simulated time, then on for at most the velocity timeout (1 s of simulated
+    # time without a set-point) before it holds: at least the 1 m streamed, less a start, and no further.
+    # (How far the stream reaches is up to fly's clock, a subscriber that may lag behind the simulator's.)
+    assert rest[1] - 1.0 >= 0.8, (streamed, rest)
+    assert rest[1] - streamed[1] <= 0.5 * 1.0 + 0.15, (streamed, rest)
+    assert math.dist(rest[::2], (3.0, 2.5)) <= ARRIVAL_RADIUS  # x and z as the go_to left them
     code, text = fly(sim, "--id", "2", "land")
     assert code == 0 and "uav 2: LANDED_ARMED" in text
 
@@ -124,7 +143,7 @@ def test_depth_camera_publishes_metric_images(fresh_ros_master):
     node = start_sim(fresh_ros_master, "_depth_camera/enabled:=true", "_depth_camera/width:=32",
                      "_depth_camera/height:=24")
     script = (
-        "import rospy, numpy as np\n"
+        "import time, rospy, numpy as np\n"
         "from sensor_msgs.msg import Image, CameraInfo\n"
         "from magna_msgs.srv import SpawnModel, SpawnModelRequest\n"
         "rospy.init_node('depth_probe')\n"
@@ -132,10 +151,14 @@ def test_depth_camera_publishes_metric_images(fresh_ros_master):
         "wall = SpawnModelRequest(name='wall', kind='obstacle', shape='cube', dimensions=[1, 6, 6])\n"
         "wall.pose.position.x, wall.pose.position.y, wall.pose.orientation.w = 3.0, -1.0, 1.0\n"
         "assert rospy.ServiceProxy('/magna/sim/spawn_model', SpawnModel)(wall).success\n"
-        "rospy.sleep(0.5)\n"
-        "image = rospy.wait_for_message('/uav_1/camera/depth/image_raw', Image, timeout=30)\n"
+        "def depth_image():\n"
+        "    image = rospy.wait_for_message('/uav_1/camera/depth/image_raw', Image, timeout=30)\n"
+        "    return image, np.frombuffer(image.data, dtype='<f4').reshape(image.height, image.width)\n"
+        "image, depth = depth_image()\n"
+        "deadline = time.monotonic() + 30\n"
+        "while not np.isfinite(depth[6, 16]) and time.monotonic() < deadline:  # an image drawn before the spawn\n"
+        "    image, depth = depth_image()\n"
         "info = rospy.wait_for_message('/uav_1/camera/depth/camera_info', CameraInfo, timeout=30)\n"
-        "depth = np.frombuffer(image.data, dtype='<f4').reshape(image.height, image.width)\n"
         "print(image.encoding, image.width, image.height, info.K[0] > 0, round(float(depth[6, 16]), 2))\n")
     out = subprocess.run(["python", "-c", script], capture_output=True, text=True, timeout=90,
                          env=fresh_ros_master.env())
@@ -146,33 +169,51 @@ def test_depth_camera_publishes_metric_images(fresh_ros_master):
 
 def test_pause_stops_simulated_time_but_not_spawning_or_the_ual_topics(fresh_ros_master):
     node = start_sim(fresh_ros_master, "_start_paused:=true")
+    # Counted /clock messages and simulated time, never wall time: paused, the simulator sends the frozen time
+    # again and again (once per publishing period); running, every message carries a new time.
     script = (
-        "import rospy, time\n"
+        "import threading, time, rospy\n"
         "from geometry_msgs.msg import PoseStamped\n"
         "from rosgraph_msgs.msg import Clock\n"
         "from std_srvs.srv import SetBool\n"
         "from magna_msgs.srv import SpawnModel, SpawnModelRequest\n"
         "rospy.init_node('pause_probe')\n"
-        "def clock():\n"
-        "    return rospy.wait_for_message('/clock', Clock, timeout=30).clock.to_sec()\n"
+        "heard, arrived = [], threading.Condition()\n"
+        "def on_clock(msg):\n"
+        "    with arrived:\n"
+        "        heard.append(msg.clock.to_sec())\n"
+        "        arrived.notify_all()\n"
+        "rospy.Subscriber('/clock', Clock, on_clock)\n"
+        "def until(condition):\n"
+        "    with arrived:\n"
+        "        assert arrived.wait_for(lambda: condition(heard), timeout=30), 'timed out on /clock'\n"
+        "        return list(heard)\n"
+        "def next_clocks(n):\n"
+        "    start = len(until(lambda h: h))\n"
+        "    return until(lambda h: len(h) >= start + n)[start:start + n]\n"
+        "def standing(h, n=10):\n"
+        "    return len(h) >= n and len(set(h[-n:])) == 1\n"
         "rospy.wait_for_service('/magna/sim/pause', timeout=30)\n"
         "pause = rospy.ServiceProxy('/magna/sim/pause', SetBool)\n"
-        "first = clock(); time.sleep(1.0); still = clock()\n"
+        "still = next_clocks(10)\n"
+        "first = still[0]\n"
         "pose = rospy.wait_for_message('/uav_2/ual/pose', PoseStamped, timeout=30)\n"
         "uav = SpawnModelRequest(name='uav_3', kind='uav', uav_id=3)\n"
         "uav.pose.position.x, uav.pose.orientation.w = 4.0, 1.0\n"
         "spawned = rospy.ServiceProxy('/magna/sim/spawn_model', SpawnModel)(uav).success\n"
         "third = rospy.wait_for_message('/uav_3/ual/pose', PoseStamped, timeout=30).pose.position.x\n"
         "resumed = pause(data=False).message\n"
-        "time.sleep(1.0); running = clock()\n"
+        "running = until(lambda h: h[-1] > first + 1.0)[-1]\n"
         "paused = pause(data=True).message\n"
-        "frozen = clock(); time.sleep(1.0); after = clock()\n"
-        "print(first == still, pose.header.stamp.to_sec() == first, spawned, third,\n"
-        "      resumed.startswith('resumed'), running > still + 1.0, paused.startswith('paused'),\n"
-        "      after == frozen)\n")
+        "paused_at = float(paused.split('t=')[1].split()[0])\n"
+        "frozen = until(standing)[-1]\n"
+        "after = next_clocks(10)\n"
+        "print(set(still) == {first}, pose.header.stamp.to_sec() == first, spawned, third,\n"
+        "      resumed.startswith('resumed'), running > first + 1.0, paused.startswith('paused'),\n"
+        "      set(after) == {frozen} and -0.0005 <= frozen - paused_at < 0.1)\n")  # the answer says t to ms
     out = subprocess.run(["python", "-c", script], capture_output=True, text=True, timeout=120,
                          env=fresh_ros_master.env())
-    # paused: the clock stands, poses come with the frozen time, a UAV spawns; resumed: it runs (rtf 5)
+    # paused: the clock stands, poses come with the frozen time, a UAV spawns; resumed: it runs; paused: it stands
     assert out.stdout.split() == ["True", "True", "True", "4.0", "True", "True", "True", "True"], out.stderr
     assert node.poll() is None
 
