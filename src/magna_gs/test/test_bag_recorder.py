@@ -1,27 +1,32 @@
 """BagRecorder: the ground station's rosbag record, and knowing when it listens (a real master and rosbag)."""
 import itertools
+import math
 import os
 import signal
 import sys
 import threading
 import time
+import xmlrpc.client
 
 import pytest
 
-from magna_common.processes import end_process_group
+from magna_common.processes import TimeoutTransport, end_process_group
 from magna_gs.bag_recorder import BagRecorder, mission_topics
+from tests.support import WAIT, wait_until
 
 RATE = 50.0  # Hz of the test publisher
 _serial = itertools.count(1)  # topics and node names of their own per test
 
 
 class CountingPublisher:
-    """Publishes PoseStamped on `topic` at RATE, the stamp's seconds counting the messages."""
+    """Publishes PoseStamped on `topic` at RATE, the stamp's seconds counting the messages; `first_connected`
+    is the number of the first one sent while this side had a subscriber's connection."""
 
     def __init__(self, rospy, topic):
         from geometry_msgs.msg import PoseStamped
 
         self.rospy, self.topic, self.sent, self.stop = rospy, topic, 0, threading.Event()
+        self.first_connected = None
         self.publisher = rospy.Publisher(topic, PoseStamped, queue_size=100)
         self.message = PoseStamped()
         self.thread = threading.Thread(target=self._run, daemon=True)
@@ -29,6 +34,8 @@ class CountingPublisher:
 
     def _run(self):
         while not self.stop.wait(1.0 / RATE):
+            if self.first_connected is None and self.publisher.get_num_connections():
+                self.first_connected = self.sent + 1
             self.sent += 1
             self.message.header.stamp = self.rospy.Time(self.sent)
             self.publisher.publish(self.message)
@@ -50,6 +57,17 @@ def start_recorder(tmp_path, topics):
     return BagRecorder(tmp_path / "simulation.bag", topics, node_name=f"bag_{os.getpid()}_{next(_serial)}")
 
 
+def messages_received(recorder, topic):
+    """How many messages of `topic` the recorder's node has received (roscpp's getBusStats: per topic, a row
+    per connection: id, bytes, messages, ...)."""
+    import rosgraph
+
+    uri = rosgraph.Master("/magna_test").lookupNode(recorder.node)
+    _published, subscribed = xmlrpc.client.ServerProxy(uri, transport=TimeoutTransport(5.0)).getBusStats(
+        "/magna_test")[:2]
+    return sum(link[2] for name, links in subscribed if name == topic for link in links)
+
+
 def recorded_counts(path):
     import rosbag
 
@@ -61,16 +79,16 @@ def test_once_it_says_listening_the_bag_gets_the_next_messages(pose_stream, tmp_
     recorder = start_recorder(tmp_path, [pose_stream.topic])
     try:
         assert recorder.wait_listening([pose_stream.topic], timeout=30.0) == []
-        sent_when_listening = pose_stream.sent
         assert pose_stream.topic in recorder.listening_to()
-        time.sleep(0.5)
+        wait_until(lambda: messages_received(recorder, pose_stream.topic) >= 25, "25 messages in the recorder")
     finally:
         recorder.close()
     assert recorder.process.poll() is not None
     assert (tmp_path / "simulation.bag").is_file() and not (tmp_path / "simulation.bag.active").exists()
     counts = recorded_counts(tmp_path / "simulation.bag")
-    # A few messages may pass while the publisher's side of the connection is being set up.
-    assert counts and counts[0] <= sent_when_listening + 5, (counts[:3], sent_when_listening)
+    # Messages sent while the publisher's side of the connection is being set up are lost; none after.
+    assert pose_stream.first_connected is not None
+    assert len(counts) >= 25 and counts[0] <= pose_stream.first_connected, (counts[:3], pose_stream.first_connected)
     assert counts == list(range(counts[0], counts[0] + len(counts)))  # none lost once connected
 
 
@@ -106,17 +124,20 @@ def test_a_topic_that_appears_while_simulated_time_stands_still_is_connected(fre
     recorder = start_recorder(tmp_path, mission_topics([3]))
     source = None
     try:
-        deadline = time.monotonic() + 30.0
-        while topic not in {t for t, nodes in rosgraph.Master("/magna_test").getSystemState()[1] if recorder.node
-                            in nodes}:  # the recorder has subscribed, and nobody publishes yet
-            assert time.monotonic() < deadline and recorder.process.poll() is None
-            time.sleep(0.05)
+        def subscribed():  # the recorder has subscribed, and nobody publishes yet
+            assert recorder.process.poll() is None, "the recorder ended"
+            return topic in {t for t, nodes in rosgraph.Master("/magna_test").getSystemState()[1]
+                             if recorder.node in nodes}
+
+        wait_until(subscribed, "the recorder to subscribe to the pose topic", timeout=3 * WAIT)
         assert recorder.listening_to() == set()
         time_runs = tmp_path / "time_runs"
         source = fresh_ros_master.spawn([sys.executable, "-c", POSE_SOURCE, topic, str(time_runs)])
         assert recorder.wait_listening([topic], timeout=20.0) == []
         time_runs.touch()  # rosbag writes nothing before simulated time is valid
-        time.sleep(1.0)
+        wait_until(lambda: messages_received(recorder, "/clock") > 0, "simulated time in the recorder")
+        after_clock = messages_received(recorder, topic)
+        wait_until(lambda: messages_received(recorder, topic) >= after_clock + 5, "poses after the clock")
     finally:
         if source is not None:
             end_process_group(source)
@@ -138,18 +159,21 @@ def test_a_topic_nobody_publishes_is_reported_missing_after_the_timeout(rospy_no
 
 def test_a_recorder_that_died_is_not_waited_for(rospy_node, tmp_path):
     recorder = start_recorder(tmp_path, ["/uav_1/ual/pose", "not a topic name"])
-    start = time.monotonic()
-    missing = recorder.wait_listening(["/uav_1/ual/pose"], timeout=60.0)
-    waited = time.monotonic() - start
+    answer = {}
+    # No time limit: only the recorder's end can end this wait.
+    waiter = threading.Thread(target=lambda: answer.setdefault(
+        "missing", recorder.wait_listening(["/uav_1/ual/pose"], timeout=math.inf)), daemon=True)
+    waiter.start()
+    wait_until(lambda: not waiter.is_alive(), "wait_listening to return once the recorder died", timeout=6 * WAIT)
     with pytest.raises(RuntimeError, match=r"no simulation.bag was written: .*ended by itself \(exit code -?[1-9]"):
         recorder.close()
-    assert missing == ["/uav_1/ual/pose"] and waited < 30.0
+    assert answer["missing"] == ["/uav_1/ual/pose"]
 
 
 def test_a_killed_recorders_file_is_kept_and_the_error_says_how_to_mend_it(pose_stream, tmp_path):
     recorder = start_recorder(tmp_path, [pose_stream.topic])
     listening = recorder.wait_listening([pose_stream.topic], timeout=30.0)
-    time.sleep(0.5)
+    wait_until(lambda: messages_received(recorder, pose_stream.topic) >= 10, "messages in the recorder")
     os.killpg(recorder.process.pid, signal.SIGKILL)  # as if the machine had to kill it
     recorder.process.wait(10.0)
     assert listening == []
