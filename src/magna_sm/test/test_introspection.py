@@ -2,7 +2,6 @@
 import os
 import subprocess
 import threading
-import time
 from pathlib import Path
 
 import numpy as np
@@ -13,7 +12,7 @@ from PIL import Image
 from magna_sm.draw import ACTIVE_FILL
 from magna_sm.examples import filmed_delivery
 from magna_sm.introspection import IntrospectionServer
-from tests.support import wait_until
+from tests.support import WAIT, wait_until
 
 
 def test_status_follows_every_transition_and_structure_is_served(rospy_node):
@@ -30,11 +29,11 @@ def test_status_follows_every_transition_and_structure_is_served(rospy_node):
 
     subscriber = rospy.Subscriber("/magna/sm/unit/status", SMStatus, on_status, queue_size=1000)
     try:
-        deadline = time.monotonic() + 10
-        while subscriber.get_num_connections() == 0 and time.monotonic() < deadline:
-            time.sleep(0.02)
+        # Both ends connected: the server's publisher sends every transition from here on.
+        wait_until(lambda: subscriber.get_num_connections() and server._status_pub.get_num_connections(),
+                   "the status topic to connect")
         assert machine.execute() == "mission_completed"
-        time.sleep(0.3)
+        wait_until(lambda: "1_land" in seen, "the last transition on the status topic")
         rospy.wait_for_service("/magna/sm/unit/get_structure", timeout=5)
         containers = rospy.ServiceProxy("/magna/sm/unit/get_structure", GetSMStructure)().containers
     finally:
@@ -54,15 +53,19 @@ def test_viewer_node_redraws_the_live_machine(fresh_ros_master, tmp_path):
     picture = tmp_path / "live.png"
     demo = fresh_ros_master.spawn(["rosrun", "magna_sm", "demo", "--step", "0.4", "--repeat", "20"])
     viewer = fresh_ros_master.spawn(["rosrun", "magna_sm", "viewer", "demo", "-o", str(picture), "--period", "0.1"])
-    deadline = time.monotonic() + 30
-    while not picture.exists() and time.monotonic() < deadline:
-        assert demo.poll() is None and viewer.poll() is None, "a node died"
-        time.sleep(0.1)
-    assert picture.exists(), "the viewer never drew the machine"
-    time.sleep(1.0)  # a few redraws, with states active
     target = np.array([int(ACTIVE_FILL[i:i + 2], 16) for i in (1, 3, 5)])
-    pixels = np.asarray(Image.open(picture).convert("RGB"), dtype=int)
-    assert (np.abs(pixels - target).max(axis=2) <= 6).sum() > 100, "no active state is highlighted"
+
+    def drawn():
+        assert demo.poll() is None and viewer.poll() is None, "a node died"
+        return picture.exists()
+
+    def highlighted():  # the picture is replaced whole (written atomically) at each redraw
+        drawn()
+        pixels = np.asarray(Image.open(picture).convert("RGB"), dtype=int)
+        return (np.abs(pixels - target).max(axis=2) <= 6).sum() > 100
+
+    wait_until(drawn, "the viewer to draw the machine", timeout=3 * WAIT)
+    wait_until(highlighted, "a redraw with an active state highlighted", timeout=3 * WAIT, poll=0.1)
 
 
 def _free_display() -> int:
