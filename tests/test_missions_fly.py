@@ -1,6 +1,6 @@
-"""Whole simulations through `magna run`: the original ROS-MAGNA pairs fly as they are, a collision
-ends in the mission's safety branch with the data saved, storage conflicts are refused, and no
-process outlives a batch.
+"""Whole simulations through `magna run`: the original ROS-MAGNA pairs fly as they are, the project's
+own missions fly to the end their README describes, a collision ends in the mission's safety branch
+with the data saved, storage conflicts are refused, and no process outlives a batch.
 
 Each test starts the real stack (magna_sim, world node, orca3d_server, ground station, UAV
 managers) on a private ROS master through the Master; a simulation takes 3-160 s of wall time.
@@ -16,6 +16,7 @@ import pytest
 
 from magna_uav.recorder import columns
 from tests.support import CORPUS, ROOT
+from tests.test_project_missions import PAIRS
 
 pytestmark = pytest.mark.timeout(900)
 
@@ -32,6 +33,41 @@ CORPUS_PAIRS = [
     ("Delivery/Delivery", "Delivery/2UAVs_follow_ap", 2, None),
     ("Delivery/Delivery", "Delivery/2UAVs_follow_ad_safe", 2, True),
 ]
+
+
+# The project's missions (missions/README.md pairs each with its world). Each flies here to the end its
+# README line describes, except those flown elsewhere through the stack their checks need:
+FLOWN_ELSEWHERE = {
+    "Gym/2UAVs_Crossing_ORCA": "tests/recorded_run.py",  # the recorded run many tests read
+    "Gym/Experiment_II_SITL_HIL": "tests/test_mavlink_missions.py",  # its hil UAV needs the fleet's stand-in
+    "Gym/Operator_Control": "src/magna_master/test/voice_commands_rostest.py",  # flown by voice, resumed, landed
+}
+# The roles each UAV flies, in order, one per goal (a role's last row in the CSV carries its outcome), and
+# where a mission says so, the height it flies at.
+TAKE_OFF, LAND = ["take_off"], ["land"]
+PROJECT_ROLES = {
+    "Gym/All_Take_Off": {uav: TAKE_OFF + LAND for uav in (1, 2, 3, 4)},  # take off at once, hover, land
+    "Gym/Paths_Step_By_Step": {uav: TAKE_OFF + ["path"] * 5 + LAND for uav in (1, 2)},  # a goal per waypoint
+    # 1 flies the tube's centre line; 2 follows 1 (agent_ad), 3 holds behind 2 (agent_ap); then the arrival box
+    "Delivery/Follower_Queue": {1: TAKE_OFF + ["path"] * 3 + LAND, 2: TAKE_OFF + ["path", "agent_ad", "path"] + LAND,
+                                3: TAKE_OFF + ["path", "agent_ap", "path"] + LAND},
+    # two legs of two paths each, the recharge stop (land, take off again) between them
+    "Gym/Battery_Recharge": {1: (TAKE_OFF + ["path"] * 2 + LAND) * 2},
+    # in a batch the operator's button times out: the UAVs hold their stations (basic_move), then land
+    "Gym/Safe_Stop": {uav: TAKE_OFF + ["path", "basic_move"] + LAND for uav in (1, 2)},
+    # 1 carries the parcel out, lowers to drop it and back up, flies home; 2 films it (agent_ap), then returns
+    "Delivery/Filmed_Delivery": {1: TAKE_OFF + ["path", "basic_move", "basic_move", "path"] + LAND,
+                                 2: TAKE_OFF + ["agent_ap", "path"] + LAND},
+    "SolarPlant/Inspection": {uav: TAKE_OFF + ["path"] + LAND for uav in (1, 2)},  # a zigzag over a field each
+}
+CRUISE_HEIGHT = {"Delivery/Filmed_Delivery": {1: 6.0, 2: 8.0}, "SolarPlant/Inspection": {1: 8.0, 2: 12.0}}
+
+
+def test_every_project_mission_is_flown_by_a_test():
+    assert set(PAIRS) == set(PROJECT_ROLES) | set(FLOWN_ELSEWHERE), "a mission of missions/README.md nobody flies"
+    assert not set(PROJECT_ROLES) & set(FLOWN_ELSEWHERE)
+    for mission, test in FLOWN_ELSEWHERE.items():
+        assert mission.split("/")[1] in (ROOT / test).read_text(), f"{test} does not fly {mission}"
 
 
 def magna_run(*args, data_root: Path, check: bool = True, rtf: str = "5") -> subprocess.CompletedProcess:
@@ -78,6 +114,26 @@ def test_original_missions_fly_as_they_are(tmp_path, world, mission, n_uavs, suc
         assert rows and list(rows[0]) == columns([i for i in ids if i != uav_id])
     summary = read_rows(folder.parent / "summary.csv")
     assert [r["outcome"] for r in summary] == ["completed"]
+
+
+@pytest.mark.parametrize("mission", sorted(PROJECT_ROLES))
+def test_project_missions_fly_to_their_intended_end(tmp_path, mission):
+    # rtf 10: a manager between goals is not waited for by the simulator, so not max (see magna_run)
+    magna_run("--world", PAIRS[mission], "--mission", mission, "--n-iter", "1", "--no-bag", "--no-report",
+              data_root=tmp_path, rtf="10")
+    folder = only_simulation(tmp_path)
+    result = json.loads((folder / "result.json").read_text())
+    assert (result["termination"], result["outcome"], result["success"]) == ("ground_station", "completed", True), \
+        result["message"]
+    assert result["collisions"] == 0 and result["leftover_processes_killed"] == []
+    for uav_id, roles in PROJECT_ROLES[mission].items():
+        rows = read_rows(folder / f"uav_{uav_id}.csv")
+        ended = [(row["role"], row["outcome"]) for row in rows if row["outcome"]]
+        assert ended == [(role, "succeeded") for role in roles], f"UAV {uav_id}"
+        heights = [float(row["pos.z"]) for row in rows]
+        assert max(heights) > 1.5 and heights[-1] < 0.2, f"UAV {uav_id} took off and landed: {heights[-1]:.2f} m"
+        if uav_id in CRUISE_HEIGHT.get(mission, {}):
+            assert abs(max(heights) - CRUISE_HEIGHT[mission][uav_id]) < 0.5, f"UAV {uav_id}: {max(heights):.2f} m"
 
 
 def test_a_collision_ends_in_the_safety_branch_with_the_data_saved(tmp_path):

@@ -5,7 +5,7 @@ table, so a mission added without a line there, or a line naming a file that is 
 fails here. Every mission must load (migration, parsing, validation: no problem and no
 warning), build into a state machine, and resolve every place it names (spawn poses,
 path waypoints) in its world, as `magna mission check MISSION --world WORLD` does.
-Flying them is tested elsewhere.
+tests/test_missions_fly.py flies every one of them to its end (or names the test that does).
 """
 import re
 import subprocess
