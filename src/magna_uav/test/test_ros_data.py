@@ -316,7 +316,12 @@ def test_topics_fill_the_view(rospy_node):
 
         data.close()
         pubs[3].publish(pose(8, 0, 2, stamp=4.0))
-        rospy.sleep(0.3)
+        # A witness on the same topic in this process: once it has the new pose, a subscription of
+        # `data` still open would have had it too (rospy hands a message to every callback of the topic).
+        witnessed = []
+        witness = rospy.Subscriber(topics(own)["pose"], PoseStamped, lambda msg: witnessed.append(msg.header.stamp))
+        pubs.append(witness)  # unregistered with the publishers
+        wait_until(lambda: rospy.Time(4.0) in witnessed, "the pose sent after close() to arrive")
         np.testing.assert_allclose(view.own.position, [1, 0, 2])  # nothing heard after close()
     finally:
         data.close()
