@@ -208,8 +208,8 @@ def test_cancel_by_stamp_recalls_older_goals_arriving_later_and_early_cancel_by_
             handle.unregister()
 
 
-def test_preempt_twice_and_cancel_after_finish_break_nothing(env):
-    from actionlib_msgs.msg import GoalStatus
+def test_preempt_twice_and_cancel_after_finish_break_nothing(env, ns):
+    from actionlib_msgs.msg import GoalID, GoalStatus
 
     second_preempt = []
 
@@ -239,9 +239,18 @@ def test_preempt_twice_and_cancel_after_finish_break_nothing(env):
     assert client.wait_for_result(WAIT)
     assert client.get_state() == GoalStatus.SUCCEEDED
     finished_id = client._goal.id
-    client.cancel_goal()          # the goal is done: nothing sent
-    client.cancel_all_goals()     # the server has only finished goals: nothing changes
-    time.sleep(0.2)
+    # A witness on the cancel topic in this process: rospy hands each message to the server's callback
+    # first (subscribed first), so once the witness has the cancel, the server has handled it.
+    cancels = []
+    witness = env.rospy.Subscriber(f"{ns}/cancel", GoalID, cancels.append)
+    try:
+        wait_until(lambda: client._cancel_pub.get_num_connections(), "the client's cancel topic to connect")
+        client.cancel_goal()          # the goal is done: nothing sent
+        client.cancel_all_goals()     # the server has only finished goals: nothing changes
+        wait_until(lambda: "" in [c.id for c in cancels], "cancel_all_goals to reach the server")
+    finally:
+        witness.unregister()
+    assert finished_id not in [c.id for c in cancels]  # cancel_goal sent nothing for a finished goal
     statuses = {g.id: g.status.status for g in server.action_server.goals()}
     assert statuses[finished_id] == GoalStatus.SUCCEEDED
     assert client.get_state() == GoalStatus.SUCCEEDED
