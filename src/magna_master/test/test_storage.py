@@ -296,3 +296,51 @@ def test_a_lock_that_wrote_nothing_leaves_no_folders(tmp_path):
     with DatasetLock(dataset):
         (dataset / "simulation_1").mkdir()
     assert (dataset / "simulation_1").is_dir()
+
+
+# --- a dataset its last batch could not finish, and room to write -----------------------------------------------
+
+def test_folders_without_a_summary_row_get_one_and_finished_ones_stay_as_they_are(tmp_path):
+    dataset = make_dataset(tmp_path, [1])
+    before = snapshot(storage_tree.simulation_dir(dataset, 1))
+    # 2: its supervisor wrote a final result after the batch died; 3: nothing but partial data;
+    # 4: the ground station had reported, the launch was not down yet
+    for m in (2, 3, 4):
+        storage_tree.simulation_dir(dataset, m).mkdir()
+    storage.write_result(storage_tree.simulation_dir(dataset, 2), result(2, final=True))
+    (storage_tree.simulation_dir(dataset, 3) / "uav_1.csv").write_text("partial\n")
+    storage.write_result(storage_tree.simulation_dir(dataset, 4), result(4, success=False, reported=True, final=False))
+
+    assert storage.repair_summary(dataset) == [2, 3, 4]
+    rows = {int(r["id"]): r for r in summary_cells(dataset)}
+    assert sorted(rows) == [1, 2, 3, 4]
+    assert (rows[2]["success"], rows[2]["outcome"]) == ("True", "succeeded")
+    assert (rows[3]["success"], rows[3]["outcome"]) == ("False", "interrupted")
+    assert (rows[4]["success"], rows[4]["outcome"]) == ("False", "collision")  # the ground station's verdict
+    third = SimulationResult.read(storage_tree.simulation_dir(dataset, 3) / "result.json")
+    assert (third.id, third.final, third.termination) == (3, True, "interrupted")
+    assert "its batch ended before this simulation finished" in third.message
+    assert (storage_tree.simulation_dir(dataset, 3) / "uav_1.csv").read_text() == "partial\n"
+    assert SimulationResult.read(storage_tree.simulation_dir(dataset, 4) / "result.json").final
+    assert snapshot(storage_tree.simulation_dir(dataset, 1)) == before
+    assert storage.repair_summary(dataset) == []  # nothing left to repair
+
+
+def test_a_disk_below_the_floor_is_refused_naming_the_folder_and_the_fix(tmp_path):
+    storage.check_writable(tmp_path, min_free_mb=0)
+    assert not list(tmp_path.iterdir())  # the probe is gone
+    with pytest.raises(StorageError, match=rf"MB free on the disk of {tmp_path}, less than the 1e\+12 MB a batch "
+                                           r"keeps free \(--min-free-space\); free space there, or choose another "
+                                           r"--data-root"):
+        storage.check_writable(tmp_path, min_free_mb=1e12)
+
+
+@pytest.mark.parametrize(("code", "words"), [("ENOSPC", "no space left on the disk of"),
+                                             ("EROFS", "is not writable"), ("EACCES", "is not writable"),
+                                             ("EIO", "cannot write in")])
+def test_write_errors_are_told_with_their_fix(tmp_path, code, words):
+    import errno
+
+    number = getattr(errno, code)
+    message = storage.describe_write_error(tmp_path, OSError(number, os.strerror(number)))
+    assert words in message and str(tmp_path) in message and "--data-root" in message

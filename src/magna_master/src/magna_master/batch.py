@@ -21,11 +21,20 @@ Per simulation m (ids from storage.plan_storage, 1..N unless appending):
 Seeds: simulation m runs with seed S+m (S from --seed, default 0), so appended simulations
 get new seeds and a dataset can be re-run exactly.
 
-Ctrl-C (SIGINT) or SIGTERM during a batch: the running simulation is stopped (its supervisor
-ends the launch), *marked* as interrupted (result.json termination/outcome "interrupted",
-success false, and its summary row), every process it started is ended, and no further
-simulation starts. Finished simulations and summary.csv are untouched. `BatchResult.interrupted`
-says so; `magna run` then exits with status 130.
+Ctrl-C (SIGINT), SIGTERM or SIGHUP (the terminal closed) during a batch: the running simulation is
+stopped (its supervisor ends the launch), *marked* as interrupted (result.json termination/outcome
+"interrupted", success false, and its summary row), every process it started is ended, and no
+further simulation starts. A simulation whose ground station had already reported keeps its outcome.
+Finished simulations and their summary rows are untouched. `BatchResult.interrupted` says so;
+`magna run` then exits with status 130, and `--append` continues the dataset.
+
+Storage: before anything starts, the dataset folder must be writable with `min_free_mb` free on its
+disk (storage.check_writable), else a StorageError (exit status 2) names the folder and the fix.
+Before each simulation the same check runs; when it fails, or a write of the simulation's
+result.json or summary row fails (a disk that filled up meanwhile), the batch stops there and
+`BatchResult.storage_error` says why. summary.csv and result.json are written atomically, so a
+failed write leaves the previous file whole. A folder the last batch could not give a summary row
+(killed, or the disk full) gets one when the next batch starts (storage.repair_summary).
 """
 from __future__ import annotations
 
@@ -52,7 +61,7 @@ from magna_common.processes import TOKEN_ENV, end_process_group, kill_tagged
 from magna_common.records import INTERRUPTED, SUPERVISOR_FAILED, SimulationResult
 from magna_common.ros_master import RosMaster, RosMasterError
 from magna_common.ros_names import HYPERPARAMETERS
-from magna_common.storage_tree import LOGS_DIR, RESULT_FILE
+from magna_common.storage_tree import LOGS_DIR, RESULT_FILE, SUMMARY_FILE, StorageError
 from magna_master import storage
 from magna_master.batch_config import BatchConfig, BatchError, hyperparameters, launch_command
 from magna_master.batch_summary import BatchResult, status
@@ -95,12 +104,17 @@ def preflight(config: BatchConfig) -> None:
                              "yet; update the workspace (make setup)")
 
 
+# A running simulation is stopped when its disk has less than this many MB free (or less than
+# --min-free-space, if smaller): its result.json and summary row still fit.
+FULL_DISK_MB = 1.0
+
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 # what signal.signal takes and gives back: a function, SIG_DFL or SIG_IGN (ints), None (a handler not set by Python)
 _SignalHandler = Callable[[int, FrameType | None], Any] | int | None
 
 
 class _StopFlag:
-    """Set by SIGINT/SIGTERM while a batch runs (handlers only in the main thread)."""
+    """Set by SIGINT/SIGTERM/SIGHUP while a batch runs (handlers only in the main thread)."""
 
     def __init__(self, out):
         self.event = threading.Event()
@@ -110,7 +124,7 @@ class _StopFlag:
     def install(self) -> None:
         if threading.current_thread() is not threading.main_thread():
             return
-        for sig in (signal.SIGINT, signal.SIGTERM):
+        for sig in STOP_SIGNALS:
             self._previous[sig] = signal.signal(sig, self._handle)
 
     def restore(self) -> None:
@@ -119,12 +133,16 @@ class _StopFlag:
         self._previous.clear()
 
     def _handle(self, signum, _frame) -> None:
-        if not self.event.is_set():
-            print(f"\nmagna run: {signal.Signals(signum).name}: stopping the running simulation, keeping the "
-                  "finished ones (wait for the clean-up)", file=self.out, flush=True)
-        else:
-            print("magna run: still cleaning up, please wait", file=self.out, flush=True)
+        first = not self.event.is_set()
         self.event.set()
+        try:
+            if first:
+                print(f"\nmagna run: {signal.Signals(signum).name}: stopping the running simulation, keeping the "
+                      "finished ones (wait for the clean-up)", file=self.out, flush=True)
+            else:
+                print("magna run: still cleaning up, please wait", file=self.out, flush=True)
+        except (OSError, ValueError):  # a terminal that hung up: the stop matters, not the words
+            pass
 
     def __bool__(self) -> bool:
         return self.event.is_set()
@@ -136,6 +154,7 @@ class Batch:
     # Seconds a supervisor may take beyond the simulation's own budgets (its start, rospy, the clean-up)
     # before the batch gives it up as hung and ends its process group.
     supervisor_margin = 60.0
+    disk_check_period = 0.5  # wall s between two looks at the free space of a running simulation's disk
 
     def __init__(self, config: BatchConfig, ask: Callable[[storage.StorageConflict], str] | None = None,
                  progress: bool | None = None, out=None,
@@ -146,20 +165,31 @@ class Batch:
         self.out = out if out is not None else sys.stderr
         self.on_simulation = on_simulation
         self.stop = _StopFlag(self.out)
+        self.storage_error = ""  # why the batch stopped early for its storage (empty: it did not)
+        self.disk_full = ""  # why the running simulation was stopped for its disk (empty: it was not)
 
     def run(self) -> BatchResult:
         config = self.config
         preflight(config)
         lock = None
-        if config.save_data:
-            lock = storage.DatasetLock(config.dataset_dir).acquire()
+        # From here on a signal stops the batch in order (the dataset lock, the folders it made).
+        self.stop.install()
         try:
+            if config.save_data:
+                lock = storage.DatasetLock(config.dataset_dir).acquire()
             plan = storage.plan_storage(config.dataset_dir, config.n_iter, config.policy, config.save_data, self.ask)
             if not plan.save and lock is not None:
                 lock.release()  # skip-save: nothing will be written there
                 lock = None
+            if plan.save:
+                storage.check_writable(config.dataset_dir, config.min_free_mb)
+                repaired = storage.repair_summary(config.dataset_dir)
+                if repaired:
+                    print(f"magna run: summary.csv had no row for simulation(s) {', '.join(map(str, repaired))} "
+                          "(their batch ended before writing it): added", file=self.out, flush=True)
             return self._loop(plan)
         finally:
+            self.stop.restore()
             if lock is not None:
                 lock.release()
 
@@ -169,7 +199,6 @@ class Batch:
         config = self.config
         results: list[SimulationResult] = []
         started = time.monotonic()
-        self.stop.install()
         bar = tqdm(total=len(plan.ids), unit="sim", desc=f"{config.inputs.mission}/{config.inputs.submission}",
                    file=self.out, disable=(None if self.progress is None else not self.progress),
                    dynamic_ncols=True, leave=True)
@@ -177,7 +206,13 @@ class Batch:
             for m in plan.ids:
                 if self.stop:
                     break
-                result = self._simulation(m, plan)
+                try:
+                    if plan.dataset_dir is not None:  # the disk may have filled since the last simulation
+                        storage.check_writable(plan.dataset_dir, config.min_free_mb)
+                    result = self._simulation(m, plan)
+                except StorageError as err:
+                    self.storage_error = f"simulation {m} was not started: {err}"
+                    break
                 if result is None:  # stopped before it started
                     break
                 results.append(result)
@@ -192,24 +227,35 @@ class Batch:
                     self.on_simulation(result)
                 if result.interrupted:
                     break
+                if self.storage_error:
+                    break
         finally:
             bar.close()
-            self.stop.restore()
-        return BatchResult(config, plan, results, bool(self.stop), time.monotonic() - started)
+        return BatchResult(config, plan, results, bool(self.stop), time.monotonic() - started, self.storage_error)
 
     def _simulation(self, m: int, plan: storage.StoragePlan) -> SimulationResult | None:
-        if plan.save:
-            work_dir = storage.prepare_simulation_dir(plan, m)
+        if plan.dataset_dir is not None:  # plan.save
+            try:
+                work_dir = storage.prepare_simulation_dir(plan, m)
+            except OSError as err:
+                raise StorageError(storage.describe_write_error(plan.dataset_dir, err)) from None
             data_dir: Path | None = work_dir
         else:
             work_dir = Path(tempfile.mkdtemp(prefix=f"magna_sim_{m}_"))
             data_dir = None
         try:
-            result = self._supervise(m, plan, work_dir, data_dir)
+            try:
+                result = self._supervise(m, plan, work_dir, data_dir)
+            except OSError as err:  # its logs folder or supervisor.log could not be made: nothing ran
+                raise StorageError(storage.describe_write_error(work_dir, err)) from None
             if result is None:
                 return None
-            if plan.dataset_dir is not None:  # plan.save
-                storage.update_summary(plan.dataset_dir, result)
+            written = storage.read_result(work_dir / RESULT_FILE)
+            if plan.dataset_dir is not None and written is not None and written.final:  # a row only beside it
+                try:
+                    storage.update_summary(plan.dataset_dir, result)
+                except OSError as err:  # the previous summary.csv stays whole (an atomic write)
+                    self._storage_failed(m, f"its row of {SUMMARY_FILE} could not be written", plan.dataset_dir, err)
             return dataclasses.replace(result, directory=work_dir if plan.save else None)
         finally:
             if not plan.save:
@@ -248,7 +294,7 @@ class Batch:
             with open(logs / "supervisor.log", "ab") as supervisor_log:
                 supervisor = master.spawn(argv, env=env, stdout=supervisor_log, stderr=supervisor_log,
                                           stdin=subprocess.DEVNULL)
-            hung = self._wait_supervisor(supervisor)
+            hung = self._wait_supervisor(supervisor, m, data_dir)
         finally:
             if supervisor is not None and supervisor.poll() is None:
                 end_process_group(supervisor, grace=2.0)
@@ -256,6 +302,10 @@ class Batch:
             master.stop()
         result = storage.read_result(result_path)
         changed = False
+        if self.disk_full and result is not None and result.final and not result.reported:
+            # the supervisor wrote its result (there was room for it): say why it was stopped
+            result = dataclasses.replace(result, message=self.disk_full)
+            changed = True
         if result is None or not result.final:
             changed = True
             partial = result or known
@@ -266,16 +316,31 @@ class Batch:
             result = dataclasses.replace(partial, final=True, supervisor_pid=supervisor.pid if supervisor else None,
                                          message=(partial.message + "; " if reported else "") + ended)
             if not reported:
-                termination = INTERRUPTED if self.stop else SUPERVISOR_FAILED
+                termination = INTERRUPTED if self.stop or self.disk_full else SUPERVISOR_FAILED
                 result = dataclasses.replace(result, success=False, outcome=termination, termination=termination,
                                              sim_duration=0.0, collisions=0, reported=False)
+                if self.disk_full:
+                    result = dataclasses.replace(result, message=f"{self.disk_full}; {result.message}")
         if leftovers:
             result = dataclasses.replace(
                 result, leftover_processes_killed=(*result.leftover_processes_killed, *leftovers))
             changed = True
         if changed:
-            storage.write_result(work_dir, result)
+            try:
+                storage.write_result(work_dir, result)
+            except OSError as err:
+                self._storage_failed(m, f"its {RESULT_FILE} could not be written", work_dir, err)
+                result = dataclasses.replace(result, message=f"{result.message}; {self.storage_error}")
         return result
+
+    def _storage_failed(self, m: int, what: str, folder: Path, err: OSError) -> None:
+        """A write of the batch failed (a full disk, a file system gone read-only): the batch stops."""
+        failure = f"{what}: {storage.describe_write_error(folder, err)}"
+        if self.storage_error:  # the disk filled during the simulation: that was said first
+            self.storage_error = f"{self.storage_error}; {failure}"
+        else:
+            self.storage_error = f"simulation {m}: {failure}; the batch stopped there, then continue it with --append"
+        print(f"magna run: simulation {m}: {failure}", file=self.out, flush=True)
 
     def supervisor_argv(self, result_path: Path, logs: Path, data_dir: Path | None, known: dict,
                         command: list[str]) -> list[str]:
@@ -287,16 +352,22 @@ class Batch:
                 "--settle", str(config.settle), "--shutdown-timeout", str(config.shutdown_timeout),
                 "--parent-pid", str(os.getpid()), "--extra", json.dumps(known), "--", *command]
 
-    def _wait_supervisor(self, supervisor) -> bool:
-        """Wait for the supervisor; on a stop request forward SIGINT; True when it had to be given up as hung."""
+    def _wait_supervisor(self, supervisor, m: int, data_dir: Path | None) -> bool:
+        """Wait for the supervisor; on a stop request, or a disk that fills up under `data_dir`, forward SIGINT;
+        True when it had to be given up as hung."""
         config = self.config
         budget = ((config.time_limit or math.inf) + config.stop_grace + config.settle
                   + 3 * config.shutdown_timeout + self.supervisor_margin)
         deadline = time.monotonic() + budget
         stop_deadline = None
+        next_disk_check = 0.0
+        self.disk_full = ""
         while supervisor.poll() is None:
             now = time.monotonic()
-            if self.stop and stop_deadline is None:
+            if data_dir is not None and not self.disk_full and now >= next_disk_check:
+                next_disk_check = now + self.disk_check_period
+                self.disk_full = self._disk_full(m, data_dir)
+            if (self.stop or self.disk_full) and stop_deadline is None:
                 try:
                     os.killpg(supervisor.pid, signal.SIGINT)
                 except ProcessLookupError:
@@ -306,6 +377,20 @@ class Batch:
                 return True
             time.sleep(0.05)
         return False
+
+    def _disk_full(self, m: int, data_dir: Path) -> str:
+        """Why simulation m must stop for its disk (empty while there is room): below the last MB the nodes'
+        writes fail, and the ground station may wait for them until the time limit."""
+        try:
+            free = shutil.disk_usage(data_dir).free
+        except OSError:
+            return ""
+        if free >= min(FULL_DISK_MB, self.config.min_free_mb) * 1e6:
+            return ""
+        self.storage_error = (f"simulation {m} was stopped: the disk of {data_dir} filled up while it ran "
+                              f"({free // 1000} kB free); free space there, then continue the dataset with --append")
+        print(f"magna run: {self.storage_error}", file=self.out, flush=True)
+        return f"stopped by the batch: the disk filled up ({free // 1000} kB free)"
 
     def _discard(self, work_dir: Path, plan: storage.StoragePlan) -> None:
         """Remove the folder of a simulation that never started (it holds only its empty logs)."""

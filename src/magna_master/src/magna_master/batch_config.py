@@ -10,7 +10,7 @@ from magna_common.errors import UserError
 from magna_common.records import Hyperparameters
 from magna_common.storage_tree import DEFAULT_DATA_ROOT, DEFAULT_NAME, StorageKey
 from magna_gs.inputs import Inputs
-from magna_master.storage import StoragePlan
+from magna_master.storage import DEFAULT_MIN_FREE_MB, StoragePlan
 
 # The launch of one simulation (magna_gs). {name} placeholders are filled per simulation.
 DEFAULT_LAUNCH_COMMAND: tuple[str, ...] = (
@@ -55,6 +55,7 @@ class BatchConfig:
     utm_plan: Path | None = None  # a UTM flight-plan file (magna_gs.utm format) the UTM node issues
     battery_floor: float = 0.0  # % of charge simulated batteries keep (PX4 SITL's SIM_BAT_MIN_PCT); 0: run empty
     fleet: Path | None = None  # the fleet file of the mission's hil and real UAVs (magna_mavlink.fleet)
+    min_free_mb: float = DEFAULT_MIN_FREE_MB  # MB the dataset's disk keeps free; checked before each simulation
 
     @property
     def key(self) -> StorageKey:

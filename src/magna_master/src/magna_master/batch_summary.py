@@ -17,6 +17,7 @@ class BatchResult:
     simulations: list[SimulationResult]  # each with its folder as `directory` (None when nothing was saved)
     interrupted: bool
     wall_time: float
+    storage_error: str = ""  # why the batch stopped early for its storage (a full disk); empty when it did not
 
     @property
     def dataset_dir(self) -> Path | None:
@@ -69,7 +70,17 @@ def format_summary(batch: BatchResult) -> str:
                  f"{batch.sim_time:.1f} simulated s in {batch.wall_time:.1f} wall s "
                  f"({batch.speed:.1f}x faster than real time while simulating)")
     if batch.interrupted:
-        lines.append("interrupted: the running simulation is marked 'interrupted'; no further simulation started")
+        stopped = [s for s in batch.simulations if s.interrupted]
+        if stopped:
+            lines.append(f"interrupted: simulation {stopped[-1].id} was stopped and is marked 'interrupted' (its "
+                         "result.json and summary row); the finished ones are kept; no further simulation started")
+        else:
+            lines.append("interrupted between simulations: every simulation run is complete; no further "
+                         "simulation started")
+        if batch.plan.save:
+            lines.append("         run again with --append to continue the dataset")
+    if batch.storage_error:
+        lines.append(f"stopped: {batch.storage_error}")
     if batch.plan.save:
         lines.append(f"data:    {batch.dataset_dir} (summary.csv, simulation_<m>/)")
         bags = batch.bags()

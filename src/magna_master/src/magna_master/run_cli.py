@@ -3,11 +3,12 @@
     magna run --world Gym/1Obs_Central_Cylinder --mission Gym/2UAVs_2paths_Central_Cylinder --n-iter 5 \\
         [--name NAME] [--dataset N] [--rtf max|FACTOR] [--seed S] [--no-bag] [--rviz] [--search-path DIR ...] \\
         [--data-root DIR] [--append|--overwrite|--skip-save] [--time-limit SECONDS] [--launch-command CMD] [--strict] \\
-        [--fleet FLEET.yaml]
+        [--fleet FLEET.yaml] [--min-free-space MB]
 
 Exit status: 0 when every simulation ran to a mission outcome (a failed mission is data, not an
-error), 1 when one or more crashed or could not start, 2 for bad input (nothing started or
-written), 130 when interrupted (finished simulations and summary.csv are kept).
+error), 1 when one or more crashed or could not start, or the disk filled up during the batch, 2 for
+bad input or a data root that cannot take the data (nothing started or written), 130 when
+interrupted (finished simulations and summary.csv are kept).
 """
 from __future__ import annotations
 
@@ -19,7 +20,7 @@ from pathlib import Path
 
 from magna_common.cli_vocabulary import add_deprecated_flag, add_rtf, add_search_path, parse_rtf
 from magna_common.storage_tree import DEFAULT_DATA_ROOT, DEFAULT_NAME
-from magna_master.storage import APPEND, OVERWRITE
+from magna_master.storage import APPEND, DEFAULT_MIN_FREE_MB, OVERWRITE
 
 HELP = "run a batch of simulations of a mission in a world; save bags, CSVs and a summary per dataset"
 
@@ -39,8 +40,11 @@ When simulation folders of this dataset exist already: --append numbers the new 
 neither you are asked on a terminal, and elsewhere the run stops before starting anything.
 --skip-save saves nothing at all (no folders, no summary, no report); the table is printed at the end.
 
-Ctrl-C stops the running simulation (its processes are ended and it is marked 'interrupted' in
-result.json and summary.csv), starts no more, and keeps every finished one.
+Ctrl-C (or SIGTERM, SIGHUP) stops the running simulation (its processes are ended and it is marked
+'interrupted' in result.json and summary.csv), starts no more, and keeps every finished one; --append
+continues the dataset. A dataset folder that is not writable, or whose disk has less than
+--min-free-space MB free, is refused before anything starts; a disk that fills up during the batch
+stops it after the running simulation, with summary.csv whole.
 
 examples:
   ./magna run --world Gym/Central_Obstacle_Torus --mission Gym/2UAVs_Crossing_ORCA --n-iter 1 --append
@@ -109,6 +113,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--time-limit", type=float, default=600.0, metavar="SECONDS",
                         help="wall-clock seconds per simulation before the ground station is stopped "
                              "(default: 600; 0: none)")
+    parser.add_argument("--min-free-space", type=float, default=DEFAULT_MIN_FREE_MB, metavar="MB",
+                        help="MB the disk of the dataset keeps free: checked before the batch and before each "
+                             "simulation, which is not started below it (default: %(default)g)")
     parser.add_argument("--launch-command", default="", metavar="CMD",
                         help="replace 'roslaunch magna_gs simulation.launch ...' (e.g. a stand-in ground "
                              "station); placeholders: " + ", ".join(f"{{{p}}}" for p in _placeholders()))
@@ -159,7 +166,7 @@ def build_config(args):
                        seed=args.seed, bag=not args.no_bag, save_data=not args.skip_save,
                        data_root=args.data_root, policy=args.policy,
                        time_limit=args.time_limit or None, button_timeout=args.button_timeout,
-                       launch_command=command, rviz=args.rviz)
+                       launch_command=command, rviz=args.rviz, min_free_mb=args.min_free_space)
 
 
 def check_fleet(mission_file: Path, fleet_file: Path | None, rtf: str) -> tuple[Path | None, str]:
@@ -212,7 +219,7 @@ def run(args) -> int:
     result = run_batch(config, ask=ask, on_simulation=reports)
     print(format_summary(result), flush=True)
     saved = result.dataset_dir if result.dataset_dir is not None and result.dataset_dir.is_dir() else None
-    if saved is not None and not result.interrupted:
+    if saved is not None and not result.interrupted and not result.storage_error:
         pictures = draw_pictures(config, saved)
         if pictures:
             print("pictures: " + ", ".join(str(p) for p in pictures), flush=True)
@@ -220,7 +227,7 @@ def run(args) -> int:
         reports.finish(saved)
     if result.interrupted:
         return 130
-    return 1 if result.failed_to_run else 0
+    return 1 if result.failed_to_run or result.storage_error else 0
 
 
 class Reports:

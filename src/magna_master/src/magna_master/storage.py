@@ -10,7 +10,10 @@ magna_common.records' SimulationResult and SummaryRow)::
             world.json mission.json uav_<id>.csv simulation.bag    written by the ground station
             logs/                    launch.log, supervisor.log and the ROS node logs
 
-The data root defaults to `~/magna_data`. A simulation folder that already exists
+The data root defaults to `~/magna_data`. A batch checks before it starts, and again before each
+simulation, that it can write in the dataset folder and that its disk keeps a floor of free space
+(`check_writable`); a folder without a summary row (its batch was killed, or the disk filled before
+the row was written) gets one from the next batch (`repair_summary`). A simulation folder that already exists
 is a *conflict*; the policy says what to do with it:
 
 - ``append``: number the new simulations after the last existing one (nothing is touched);
@@ -25,15 +28,18 @@ Nothing here imports ROS: the batch loop and the tests use it directly.
 """
 from __future__ import annotations
 
+import dataclasses
+import datetime
 import errno
 import fcntl
 import os
 import shutil
+import tempfile
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from magna_common.records import RecordError, SimulationResult, SummaryRow
+from magna_common.records import INTERRUPTED, RecordError, SimulationResult, SummaryRow
 from magna_common.storage_tree import (
     RESULT_FILE,
     SUMMARY_FILE,
@@ -110,6 +116,78 @@ def remove_summary_row(dataset_dir: Path, m: int) -> None:
     kept = [r for r in rows if r.id != m]
     if len(kept) != len(rows):
         SummaryRow.write(Path(dataset_dir) / SUMMARY_FILE, kept)
+
+
+def repair_summary(dataset_dir: Path) -> list[int]:
+    """Give each simulation folder without a summary row its row; returns the ids given one.
+
+    A batch that was killed (SIGKILL, a power cut) or met a full disk cannot write the row of the
+    simulation it was running. Its supervisor may still have written a final result.json: that is the
+    row. Without one, the simulation did not finish: its result.json says so (termination
+    'interrupted', success false, what was known kept) and its row follows. Rows already written and
+    finished simulations are never touched.
+    """
+    dataset_dir = Path(dataset_dir)
+    listed = {row.id for row in read_summary(dataset_dir)}
+    repaired = []
+    for m in existing_simulations(dataset_dir):
+        if m in listed:
+            continue
+        folder = simulation_dir(dataset_dir, m)
+        result = read_result(folder / RESULT_FILE)
+        if result is None or not result.final:
+            now = datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
+            note = f"its batch ended before this simulation finished (found by the next batch, {now})"
+            if result is not None and result.reported:  # the ground station's verdict stands
+                result = dataclasses.replace(result, final=True, message=f"{result.message}; {note}")
+            else:
+                result = dataclasses.replace(result or SimulationResult(), id=m, final=True, success=False,
+                                             termination=INTERRUPTED, outcome=INTERRUPTED, message=note)
+            write_result(folder, result)
+        update_summary(dataset_dir, result)
+        repaired.append(m)
+    return repaired
+
+
+# --- room to write --------------------------------------------------------------------------------------------
+
+DEFAULT_MIN_FREE_MB = 100.0  # a batch keeps at least this much free on the disk of its dataset
+
+
+def describe_write_error(folder: Path, err: OSError) -> str:
+    """What a failed write in `folder` means for the user, and the fix."""
+    reason = err.strerror or str(err)
+    if err.errno in (errno.ENOSPC, errno.EDQUOT):
+        return (f"no space left on the disk of {folder} ({reason}); free space there, or choose another "
+                "--data-root")
+    if err.errno in (errno.EROFS, errno.EACCES, errno.EPERM):
+        return (f"{folder} is not writable ({reason}); make it writable (its owner and permissions, or a "
+                "read-only mount) or choose another --data-root")
+    return f"cannot write in {folder} ({reason}); check that disk, or choose another --data-root"
+
+
+def check_writable(folder: Path, min_free_mb: float = DEFAULT_MIN_FREE_MB) -> None:
+    """StorageError unless a file can be written in `folder` and its disk has `min_free_mb` MB free.
+
+    The probe is a small file, written, synced and removed: on file systems that allocate late, only
+    the sync meets a full disk.
+    """
+    folder = Path(folder)
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".magna_write_probe.", dir=folder)
+        try:
+            os.write(fd, b"\0" * 4096)
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+            os.unlink(probe)
+    except OSError as err:
+        raise StorageError(describe_write_error(folder, err)) from None
+    free = shutil.disk_usage(folder).free
+    if free < min_free_mb * 1e6:
+        raise StorageError(f"only {free / 1e6:.1f} MB free on the disk of {folder}, less than the "
+                           f"{min_free_mb:g} MB a batch keeps free (--min-free-space); free space there, or "
+                           "choose another --data-root")
 
 
 # --- planning a batch -------------------------------------------------------------------------------------------
@@ -227,8 +305,8 @@ class DatasetLock:
             except FileExistsError:
                 pass
             except OSError as err:
-                raise StorageError(f"cannot create {self.dataset_dir}: {err.strerror}; choose another "
-                                   "--data-root") from None
+                raise StorageError(f"cannot create {self.dataset_dir}: {describe_write_error(missing[-1].parent, err)}"
+                                   ) from None
         self._fd = os.open(self.dataset_dir, os.O_RDONLY | os.O_DIRECTORY)
         try:
             fcntl.flock(self._fd, fcntl.LOCK_EX | fcntl.LOCK_NB)

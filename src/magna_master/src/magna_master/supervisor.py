@@ -166,7 +166,10 @@ class SupervisorCore:
             self._termination_wall = time.monotonic() - start
             result = self._result(GROUND_STATION, launch_exit_code=None, leftovers=[], gs_stop_called=False,
                                   timed_out=False)
-            self._write(dataclasses.replace(result, final=False))  # rewritten once the launch is down
+            try:
+                self._write(dataclasses.replace(result, final=False))  # rewritten once the launch is down
+            except OSError as err:  # a full disk: acknowledge all the same; the final write (or the batch) says it
+                print(f"supervisor: cannot write {self.result_path}: {err}", file=sys.stderr, flush=True)
         self._wake.set()
         return True
 
