@@ -11,6 +11,7 @@ UalBehaviour against ual_mavlink in front of magna_sim's MAVLink vehicle (set `i
 """
 import math
 import sys
+import time
 import unittest
 
 import rospy
@@ -28,6 +29,7 @@ from uav_abstraction_layer.srv import GoToWaypoint, GoToWaypointGeo, Land, SetHo
 from magna_common.geo import enu_to_geodetic
 
 IDS = (1, 2, 3)
+CAUGHT_UP = 0.1  # s of simulated time: a pose stamped this much past the clock at a call's return came after it
 # A MAVLink autopilot disarms on the ground by itself (PX4's COM_DISARM_*) until it is armed again.
 LANDED = (State.LANDED_ARMED, State.LANDED_DISARMED)
 
@@ -46,6 +48,15 @@ def wait(condition, what, sim_seconds=30.0):
         if rospy.is_shutdown() or rospy.get_rostime() > deadline:
             raise AssertionError("timed out waiting for " + what)
         rospy.sleep(0.02)
+
+
+def wait_wall(condition, what, wall_seconds=30.0):
+    """For conditions on the clock itself, which a simulated-time deadline cannot guard."""
+    deadline = time.monotonic() + wall_seconds
+    while not condition():
+        if rospy.is_shutdown() or time.monotonic() > deadline:
+            raise AssertionError("timed out waiting for " + what)
+        time.sleep(0.02)
 
 
 class Latest:
@@ -84,10 +95,26 @@ class UalBehaviour(unittest.TestCase):
         wait(lambda: all(cls.state[i].msg and cls.state[i].msg.state == State.LANDED_ARMED for i in ids),
              f"{len(ids)} LANDED_ARMED UAVs")
 
-    @staticmethod
-    def settle():
-        """Let the 30 Hz topics catch up with a call that just returned."""
-        rospy.sleep(0.1)
+    def settle(self):
+        """Wait until the topics show the UAVs after a call that just returned: for each, a pose stamped a
+        little (CAUGHT_UP) past this node's clock at the return, then a state message heard after that pose.
+        This node's clock can lag behind the server's, hence the margin."""
+        since = rospy.get_rostime() + rospy.Duration(CAUGHT_UP)
+        wait(lambda: all(self.pose[i].msg.header.stamp > since for i in self.ids), "poses stamped after the call")
+        heard = {i: len(self.state[i].all) for i in self.ids}
+        wait(lambda: all(len(self.state[i].all) > heard[i] for i in self.ids), "states heard after those poses")
+
+    def wait_still(self, moved=0.01, window=1.0):
+        """Until every UAV's poses of the last `window` s of simulated time lie within `moved` m of each other."""
+        def still(i):
+            poses = self.pose[i].all
+            latest = poses[-1].header.stamp
+            recent = [p.pose.position for p in poses if latest - p.header.stamp <= rospy.Duration(window)]
+            spans_window = latest - poses[0].header.stamp >= rospy.Duration(window)
+            return spans_window and max(math.dist((a.x, a.y, a.z), (recent[-1].x, recent[-1].y, recent[-1].z))
+                                        for a in recent) <= moved
+
+        wait(lambda: all(still(i) for i in self.ids), "the UAVs to hold still")
 
     def position(self, i):
         p = self.pose[i].msg.pose.position
@@ -153,7 +180,7 @@ class UalBehaviour(unittest.TestCase):
             self.assertAlmostEqual(self.position(i)[1] - before[i][1], 1.0, delta=0.3)
         wait(lambda: all(abs(self.velocity[i].msg.twist.linear.y) < 0.02 for i in self.ids),
              "the hover after set_velocity stops (velocity timeout)")
-        rospy.sleep(3.0)  # the hold position was taken while still moving: let it settle back
+        self.wait_still()  # the hold position was taken while still moving: it flies back to it
         held = {i: self.position(i) for i in self.ids}
         self.stream(lambda i: self.set_pose[i].publish(pose_at(float("nan"), 0, 2)), 1.0)
         for i in self.ids:
@@ -218,8 +245,7 @@ class UalApi(UalBehaviour):
 
     def test_1b_the_clock_runs(self):
         first = self.clock.msg.clock
-        rospy.sleep(0.5)
-        self.assertGreater(self.clock.msg.clock, first)
+        wait_wall(lambda: self.clock.msg.clock > first, "the clock to run")
 
     def test_2b_refused_spawns_leave_the_simulation_running(self):
         answer = self.spawn(SpawnModelRequest(name="uav_2", kind="obstacle", shape="cube", dimensions=[1, 1, 1]))
@@ -233,8 +259,7 @@ class UalApi(UalBehaviour):
         self.assertIn("dimensions", answer.message)
         self.assertFalse(self.delete(name="nothing_here").success)
         before = self.clock.msg.clock
-        rospy.sleep(0.3)
-        self.assertGreater(self.clock.msg.clock, before)
+        wait_wall(lambda: self.clock.msg.clock > before, "the clock to run on")
 
     def test_3b_tf_follows_the_uav(self):
         transform = self.tf_buffer.lookup_transform("map", "uav_1/base_link", rospy.Time(0), rospy.Duration(5))
