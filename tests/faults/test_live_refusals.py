@@ -21,6 +21,7 @@ from pathlib import Path
 
 import pytest
 
+from magna_common.processes import tagged_processes
 from tests.support import ROOT
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(400)]
@@ -167,12 +168,17 @@ def test_bad_commands_and_set_points_are_refused_and_the_mission_completes(fresh
                               timeout=360, cwd=ROOT)
     assert operator.returncode == 0, operator.stdout[-3000:] + operator.stderr[-3000:]
     launch.wait(120)  # the ground station ended the mission, and the launch with it
+    # Every node of the launch ended with it: nothing but the master itself is left on this master's URI.
+    leftovers = [(pid, command) for pid, command in tagged_processes("ROS_MASTER_URI", master.uri, {os.getpid()})
+                 if "rosmaster" not in command]
+    assert leftovers == [], leftovers
     seen = json.loads(out.read_text())
     assert seen["result"]["outcome"] == "completed" and seen["result"]["success"], seen["result"]
     assert len(seen["refusals"]) == len(BAD_COMMANDS) + 4 + 2
     with capsys.disabled():
         print(f"\n[live] {len(seen['refusals'])} bad commands and set-points refused, UAV 1 drifted "
-              f"{seen['drift']:.2f} m, mission {seen['result']['outcome']} ({time.monotonic() - started:.0f} s):")
+              f"{seen['drift']:.2f} m, mission {seen['result']['outcome']}, no process left "
+              f"({time.monotonic() - started:.0f} s):")
         for refusal in seen["refusals"]:
             print(f"  {refusal[:160]}")
 
