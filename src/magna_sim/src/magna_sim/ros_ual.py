@@ -56,6 +56,7 @@ class UalServer:
     def __init__(self, uav_id: int, logic: UalLogic, queue: CommandQueue, map_origin_geo=None):
         self.uav_id = uav_id
         self.logic = logic
+        self.logic.on_warning = lambda message: rospy.logwarn_throttle(5.0, f"{names.ual(uav_id, '')}{message}")
         self.queue = queue
         self.map_origin_geo = map_origin_geo
         self.base_frame = f"uav_{uav_id}/base_link"

@@ -4,9 +4,10 @@
 
 Commands are checked here and refused with `CommandRefused` (the message says
 why and what state would accept it); the ROS layer turns that into a failed
-service call. Numbers must be finite, and a position target (take_off, go_to_waypoint,
-set_pose) must lie inside the world's boundaries once the ROS layer knows them
-(`boundaries`, from the world node's /magna/world/boundaries). `update` advances the machine after each physics step.
+service call. Numbers must be finite. A position target (take_off, go_to_waypoint, set_pose) far
+outside the world's boundaries (`boundaries`, from the world node's /magna/world/boundaries, once the
+ROS layer knows them) is refused; one just outside is flown, as the original's UAL did, and told to
+`on_warning`. `update` advances the machine after each physics step.
 Every accepted command bumps `command_id`, so a blocking call can tell when a
 newer command took its place.
 
@@ -25,6 +26,7 @@ circles it on its loiter circle, and a landing ends when the plane has rolled to
 from __future__ import annotations
 
 import enum
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -58,6 +60,9 @@ class UalSettings:
     landed_height: float = 0.05  # m above the ground that counts as touched down
 
 
+FAR_OUTSIDE = 1.0  # times the world's largest extent: a target farther outside than this is refused
+
+
 class UalLogic:
     def __init__(self, vehicle: Vehicle, settings: UalSettings = UalSettings()):
         self.vehicle = vehicle
@@ -70,6 +75,7 @@ class UalLogic:
         self._time = 0.0
         self._approach: Arrival | None = None  # the take-off or waypoint being flown to, if any
         self.boundaries: np.ndarray | None = None  # the world's [[xmin, xmax], [ymin, ymax], [zmin, zmax]], if known
+        self.on_warning: Callable[[str], None] = lambda message: None  # a target flown outside the world
         # A blocking call must never return farther out than MAGNA's own idea of "there".
         self.arrival_radius = min(settings.position_th / 2.0, vehicle.airframe.accepted_target_radius)
 
@@ -179,13 +185,22 @@ class UalLogic:
                                  f"{command} needs {state.name}")
 
     def _require_inside(self, command: str, target: np.ndarray) -> None:
-        """A position target beyond the world (a typo, 1e6 m away) is refused, not flown toward."""
+        """A target far beyond the world (a typo, 1e6 m away) is refused, not flown toward. One within a world's
+        size of it is flown with a warning: the original's UAL flew anything, and its missions may leave the box."""
         box = self.boundaries
-        if box is not None and not bool(np.all(target >= box[:, 0]) and np.all(target <= box[:, 1])):
-            limits = ", ".join(f"{axis} {low:g}..{high:g}" for axis, (low, high) in zip("xyz", box.tolist(),
-                                                                                       strict=True))
-            raise CommandRefused(f"{command} refused: the target ({', '.join(f'{v:.6g}' for v in target)}) is outside "
-                                 f"the world's boundaries ({limits} m); give a target inside them")
+        if box is None:
+            return
+        beyond = float(np.max(np.maximum(box[:, 0] - target, target - box[:, 1])))  # > 0: outside
+        if beyond <= 0.0:
+            return
+        limits = ", ".join(f"{axis} {low:g}..{high:g}" for axis, (low, high) in zip("xyz", box.tolist(), strict=True))
+        where = (f"the target ({', '.join(f'{v:.6g}' for v in target)}) is {beyond:.6g} m outside the world's "
+                 f"boundaries ({limits} m)")
+        margin = FAR_OUTSIDE * float(np.max(box[:, 1] - box[:, 0]))
+        if not beyond <= margin:
+            raise CommandRefused(f"{command} refused: {where}, more than the world's size ({margin:g} m); "
+                                 f"give a target inside them")
+        self.on_warning(f"{command}: {where}; flown all the same")
 
     def _start_landing(self) -> None:
         # Aim below the floor so the descent never stalls just above it; touching down ends it.
