@@ -29,7 +29,9 @@ from uav_abstraction_layer.srv import GoToWaypoint, GoToWaypointGeo, Land, SetHo
 from magna_common.geo import enu_to_geodetic
 
 IDS = (1, 2, 3)
-CAUGHT_UP = 0.1  # s of simulated time: a pose stamped this much past the clock at a call's return came after it
+# s of simulated time: a pose stamped this much past this node's clock at a call's return came after it
+# (bench/clock_lag.py at rtf 4: poses arrived up to 0.07 s ahead of that clock, 0.13 s with both cores busy)
+CAUGHT_UP = 0.25
 # A MAVLink autopilot disarms on the ground by itself (PX4's COM_DISARM_*) until it is armed again.
 LANDED = (State.LANDED_ARMED, State.LANDED_DISARMED)
 
