@@ -2,7 +2,7 @@
 SHELL := /bin/bash
 .DEFAULT_GOAL := help
 
-.PHONY: help setup run test lint bench clean
+.PHONY: help setup run test test-faults lint bench clean
 
 help:  ## list the targets
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-7s %s\n", $$1, $$2}'
@@ -22,6 +22,11 @@ run: setup  ## the main job: a default batch of simulations (RUN_ARGS="--n-iter 
 
 test: setup  ## linters, unit tests (pytest) and integration tests (gtest, rostest), one summary
 	@bash scripts/test.sh
+
+# The slow fault run, kept out of `make test`: 50 simulations in one batch, the Master's memory and
+# descriptors, orphans and ~/.ros watched (tests/faults/endurance.py prints the figures).
+test-faults: setup  ## the endurance batch (50 simulations; long, not part of make test)
+	@bash scripts/with_env.sh python -m pytest -q -s -p no:cacheprovider tests/faults/endurance.py
 
 lint: setup  ## ruff, catkin_lint, mypy and the layering check only
 	@bash scripts/test.sh --lint-only

@@ -150,6 +150,10 @@ def test_signals_at_random_points_keep_the_dataset_and_leave_no_process(tmp_path
                 assert results[last]["termination"] == "interrupted", results[last]
         if results[last]["termination"] == "interrupted":
             assert "interrupted" in run.output()
+        print(f"\npoint {n}: {point.signal.name}{' twice' if point.twice else ''} in simulation {target}'s "
+              f"{phase} (+{point.delay:.2f} s): exit {status}, {len(left)} processes left, simulations "
+              f"{min(results)}..{last} kept ({len(finished_before)} unchanged), simulation {last}: "
+              f"{results[last]['termination']}/{results[last]['outcome']}", end="")
 
     assert {"launch", "flight", "finishing"} <= set(seen_phases), seen_phases
     assert marked_interrupted >= 4, f"only {marked_interrupted} simulations were marked interrupted"
