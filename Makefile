@@ -5,7 +5,7 @@ SHELL := /bin/bash
 .PHONY: help setup run test test-faults lint bench clean
 
 help:  ## list the targets
-	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-7s %s\n", $$1, $$2}'
+	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-11s %s\n", $$1, $$2}'
 
 setup:  ## install Debian packages, the venv and build the catkin workspace (quick when done)
 	@bash scripts/setup.sh
