@@ -142,7 +142,11 @@ class GoalTable:
             self._pubs = {
                 "status": rospy.Publisher(action_topic(self.ns, "status"), GoalStatusArray, latch=True,
                                           queue_size=queue),
-                "result": rospy.Publisher(action_topic(self.ns, "result"), self.types.action_result,
+                # Latched: a client's result subscription may still be completing its handshake when a goal
+                # is refused at once; rospy drops a message for such a connection, and actionlib's clients
+                # (C++ and Python) then wait for ever. The latched copy reaches it once connected; clients
+                # ignore a result whose goal id is not theirs.
+                "result": rospy.Publisher(action_topic(self.ns, "result"), self.types.action_result, latch=True,
                                           queue_size=queue),
                 "feedback": rospy.Publisher(action_topic(self.ns, "feedback"), self.types.action_feedback,
                                             queue_size=queue),
