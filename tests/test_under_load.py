@@ -27,7 +27,7 @@ def test_a_failure_or_a_skip_makes_the_proof_fail_and_the_hogs_end(tmp_path):
         import pytest
 
         def test_passes():
-            assert True
+            assert sorted([3, 1, 2]) == [1, 2, 3]
 
         def test_fails():
             assert False
