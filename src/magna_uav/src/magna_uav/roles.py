@@ -78,6 +78,40 @@ def not_flying(own, what: str) -> str:
     return f"the UAL is {state_name(own.ual_state)}: {what} needs it FLYING_AUTO, and the UAL ignores set-points now"
 
 
+class UalManoeuvre:
+    """A take-off or landing the UAL accepted, watched through the UAL state (the only report the UAL gives):
+    `failure` says why it failed ("" while it goes on). Shared, so both manoeuvres fail in the same cases.
+
+    noun: "take-off" or "landing", for the messages; during: the state while it runs (TAKING_OFF, LANDING);
+    before: the states it leaves (seen again after `during`, the UAL gave it up); interrupting: states that
+    end it; blocked_from: where an obstacle would stop it ("above", "under"). `stuck` is the message when the
+    distance left stops shrinking (Stall)."""
+
+    def __init__(self, noun: str, during: int, before: tuple[int, ...], interrupting: tuple[int, ...],
+                 blocked_from: str):
+        self.noun, self.during, self.before, self.interrupting = noun, during, before, interrupting
+        self.blocked_from = blocked_from
+        self.asked_at = 0.0
+        self.accepted = False  # the UAL showed `during` since it was asked
+        self.stall = Stall()
+
+    def failure(self, state: int, z: float, elapsed: float, distance_left: float, stuck: str) -> str:
+        self.accepted = self.accepted or state == self.during
+        if state in self.before:
+            if self.accepted:
+                return (f"{self.noun} failed: the UAL reports {state_name(state)} again at z = {z:.2f} m: it gave "
+                        f"the {self.noun} up (its log says why)")
+            if elapsed - self.asked_at >= UAL_ACCEPT_TIME:
+                return (f"{self.noun} failed: the UAL still reports {state_name(state)} "
+                        f"{elapsed - self.asked_at:.1f} s after it accepted the {self.noun}")
+        elif state in self.interrupting:
+            return f"{self.noun} interrupted: the UAL reports {state_name(state)} at z = {z:.2f} m"
+        if self.stall.stuck(None, distance_left, elapsed):
+            return (f"{stuck} in {STALL_TIME:g} s (UAL state {state_name(state)}): something {self.blocked_from} "
+                    f"it, or the UAL holds it")
+        return ""
+
+
 @dataclass
 class RoleStep:
     action: str  # FLY (NAI velocity to goal), WAYPOINT (UAL go_to_waypoint), TAKE_OFF, LAND, WAIT, HOVER
@@ -122,9 +156,7 @@ class TakeOffRole(Role):
             raise ValueError(f"take_off height is {height}: give a positive height in metres")
         self.height, self.tolerance = float(height), tolerance
         self.target_z: float | None = None
-        self.asked_at = 0.0
-        self.accepted = False  # the UAL showed TAKING_OFF since it was asked
-        self.stall = Stall()
+        self.manoeuvre = UalManoeuvre("take-off", TAKING_OFF, LANDED, (LANDING, UNINITIALIZED), "above")
 
     def _step(self, view, now, elapsed):
         own = view.own
@@ -133,7 +165,7 @@ class TakeOffRole(Role):
                 return RoleStep(HOVER, percent=100.0, outcome=SUCCEEDED, message="already flying")
             if own.ual_state == UNINITIALIZED and elapsed < UAL_READY_TIME:
                 return RoleStep(WAIT)  # asked now, the UAL would refuse; after UAL_READY_TIME it says why itself
-            self.target_z, self.asked_at = float(own.position[2]) + self.height, elapsed
+            self.target_z, self.manoeuvre.asked_at = float(own.position[2]) + self.height, elapsed
             return RoleStep(TAKE_OFF, height=self.height, goal=Goal(position=own.position + [0, 0, self.height]))
         climbed = 100.0 * min(1.0, max(0.0, 1.0 - (self.target_z - own.position[2]) / self.height))
         if own.ual_state == FLYING_AUTO and abs(own.position[2] - self.target_z) <= self.tolerance:
@@ -147,23 +179,12 @@ class TakeOffRole(Role):
 
     def _failure(self, own, elapsed: float) -> str:
         """Why the take-off the UAL accepted has failed ("" while it goes on)."""
-        state = own.ual_state
-        self.accepted = self.accepted or state == TAKING_OFF
-        z = float(own.position[2])
-        if state in LANDED:
-            if self.accepted:
-                return (f"take-off failed: the UAL reports {state_name(state)} again at z = {z:.2f} m: it gave the "
-                        f"take-off up (its log says why)")
-            if elapsed - self.asked_at >= UAL_ACCEPT_TIME:
-                return (f"take-off failed: the UAL still reports {state_name(state)} {elapsed - self.asked_at:.1f} s "
-                        f"after it accepted the take-off")
-        elif state in (LANDING, UNINITIALIZED):
-            return f"take-off interrupted: the UAL reports {state_name(state)} at z = {z:.2f} m"
         assert self.target_z is not None  # asked before any failure is looked for
-        if self.stall.stuck(None, self.target_z - z, elapsed):
-            return (f"take-off stuck: climbed no nearer than {self.stall.best:.2f} m below {self.target_z:.2f} m in "
-                    f"{STALL_TIME:g} s (UAL state {state_name(state)}): something above it, or the UAL holds it")
-        return ""
+        z = float(own.position[2])
+        # "something above it": magna_sim keeps a blocked take-off TAKING_OFF for ever
+        return self.manoeuvre.failure(own.ual_state, z, elapsed, self.target_z - z,
+                                      f"take-off stuck: climbed no nearer than {self.manoeuvre.stall.best:.2f} m "
+                                      f"below {self.target_z:.2f} m")
 
 
 class LandRole(Role):
@@ -176,16 +197,14 @@ class LandRole(Role):
     def __init__(self, duration: float = 0.0):
         super().__init__(duration)
         self.asked = False
-        self.asked_at = 0.0
-        self.accepted = False  # the UAL showed LANDING since it was asked
-        self.stall = Stall()
+        self.manoeuvre = UalManoeuvre("landing", LANDING, (FLYING_AUTO,), (TAKING_OFF, UNINITIALIZED), "under")
 
     def _step(self, view, now, elapsed):
         own = view.own
         if own.ual_state in LANDED:
             return RoleStep(WAIT, percent=100.0, outcome=SUCCEEDED, message="landed")
         if not self.asked:
-            self.asked, self.asked_at = True, elapsed
+            self.asked, self.manoeuvre.asked_at = True, elapsed
             return RoleStep(LAND)
         failure = self._failure(own, elapsed)
         if failure:
@@ -195,22 +214,9 @@ class LandRole(Role):
         return RoleStep(WAIT, percent=50.0 if own.ual_state == LANDING else 0.0)
 
     def _failure(self, own, elapsed: float) -> str:
-        state = own.ual_state
-        self.accepted = self.accepted or state == LANDING
         z = float(own.position[2])
-        if state == FLYING_AUTO:
-            if self.accepted:
-                return (f"landing failed: the UAL reports FLYING_AUTO again at z = {z:.2f} m: it gave the landing up "
-                        f"(its log says why)")
-            if elapsed - self.asked_at >= UAL_ACCEPT_TIME:
-                return (f"landing failed: the UAL still reports FLYING_AUTO {elapsed - self.asked_at:.1f} s after it "
-                        f"accepted the landing")
-        elif state in (TAKING_OFF, UNINITIALIZED):
-            return f"landing interrupted: the UAL reports {state_name(state)} at z = {z:.2f} m"
-        if self.stall.stuck(None, z, elapsed):
-            return (f"landing stuck: came no lower than z = {self.stall.best:.2f} m in {STALL_TIME:g} s (UAL state "
-                    f"{state_name(state)}): something under it, or the UAL holds it")
-        return ""
+        return self.manoeuvre.failure(own.ual_state, z, elapsed, z,
+                                      f"landing stuck: came no lower than z = {self.manoeuvre.stall.best:.2f} m")
 
 
 class FollowPathRole(Role):
