@@ -164,3 +164,17 @@ def check_dataset(dataset: Path) -> dict[int, dict]:
         results[m] = result
     assert not temporary_files(dataset), temporary_files(dataset)
     return results
+
+
+def append_one_simulation(data_root: Path, log_dir: Path, *args: str) -> dict[int, dict]:
+    """`magna run --n-iter 1 --append` on the dataset after a fault: it must run to its end, exit 0 and leave no
+    process; returns check_dataset's results (the appended simulation is the last)."""
+    run = MagnaRun(data_root, log_dir, ("--n-iter", "1", "--append", "--no-report", *args))
+    try:
+        status = run.start().wait(timeout=300)
+        left = run.wait_for_no_process()
+    finally:
+        run.kill_everything()
+    assert status == 0, run.output()[-3000:]
+    assert not left, left
+    return check_dataset(dataset_dir(data_root))

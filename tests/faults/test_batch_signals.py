@@ -26,6 +26,7 @@ import pytest
 from magna_common.storage_tree import existing_simulations, simulation_dir
 from tests.faults.batch_runs import (
     MagnaRun,
+    append_one_simulation,
     check_dataset,
     dataset_dir,
     folder_digest,
@@ -160,15 +161,7 @@ def test_signals_at_random_points_keep_the_dataset_and_leave_no_process(tmp_path
 
     # --append carries on from the last folder, interrupted ones included, and runs to its end
     before = existing_simulations(dataset)
-    run = MagnaRun(data_root, tmp_path / "run_last", ("--n-iter", "1", "--append", "--no-report"))
-    try:
-        status = run.start().wait(timeout=300)
-        left = run.wait_for_no_process()
-    finally:
-        run.kill_everything()
-    assert status == 0, run.output()[-3000:]
-    assert not left
-    results = check_dataset(dataset)
+    results = append_one_simulation(data_root, tmp_path / "run_last")
     assert sorted(results) == [*before, len(before) + 1]
     assert results[len(before) + 1]["outcome"] == "completed" and results[len(before) + 1]["success"] is True
     print(f"\n{len(plan)} interrupts, phases seen {seen_phases}, {marked_interrupted} marked interrupted; "

@@ -23,7 +23,14 @@ import pytest
 
 from magna_common.records import SummaryRow
 from magna_common.storage_tree import SUMMARY_FILE, existing_simulations, simulation_dir
-from tests.faults.batch_runs import MagnaRun, check_dataset, dataset_dir, summary_ids, temporary_files, wait_for
+from tests.faults.batch_runs import (
+    MagnaRun,
+    append_one_simulation,
+    dataset_dir,
+    summary_ids,
+    temporary_files,
+    wait_for,
+)
 
 IN_NAMESPACE_ENV = "MAGNA_DISK_TEST_IN_NAMESPACE"
 
@@ -173,16 +180,7 @@ def test_a_disk_that_fills_during_a_flight_ends_the_batch_with_a_clear_error(req
     # room again: --append continues; the cut simulation gets its row, then a new one runs to its end
     for filler in disk.path.glob("filler_*"):
         filler.unlink()
-    run = MagnaRun(data_root, tmp_path / "again", ("--n-iter", "1", "--append", "--min-free-space", "4",
-                                                   "--no-report"))
-    try:
-        status = run.start().wait(timeout=300)
-        left = run.wait_for_no_process()
-    finally:
-        run.kill_everything()
-    assert status == 0, run.output()[-3000:]
-    assert not left
-    results = check_dataset(dataset)
+    results = append_one_simulation(data_root, tmp_path / "again", "--min-free-space", "4")
     assert sorted(results) == [1, 2, 3] and summary_ids(dataset) == [1, 2, 3]
     assert results[2]["success"] is False
     assert results[3]["outcome"] == "completed"
