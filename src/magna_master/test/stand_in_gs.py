@@ -9,7 +9,7 @@ children's) in DIR/stand_in.json (or --report), then per MODE:
   ok        sleep --sleep (--long-sleep for the seed --sleep-seed), write world.json, mission.json,
             uav_1.csv, uav_2.csv (and simulation.bag when --bag true), call
             /magna/master/simulation_termination and exit; seeds in --fail-seeds
-            report a collision (success false)
+            report a collision (success false) with UAV 2's critical event at 4.5 simulated s
   linger    like ok, but stay alive after the call (the supervisor must end it)
   orphan    like ok, after starting a grandchild in a session of its own that sleeps for 10 minutes
   crash     sleep --sleep, then exit with status 3 without calling the service
@@ -52,6 +52,7 @@ def main() -> int:
         signal.signal(signal.SIGTERM, signal.SIG_IGN)
 
     import rospy
+    from magna_msgs.msg import CriticalEvent
     from magna_msgs.srv import SimulationTermination
     from std_srvs.srv import Trigger, TriggerResponse
 
@@ -125,7 +126,8 @@ def main() -> int:
     failing = {int(s) for s in args.fail_seeds.split(",") if s.strip()}
     if args.seed in failing:
         response = terminate(success=False, outcome="collision", message="collision between 1 and 2",
-                             sim_duration=10.0 + args.seed, collisions=1)
+                             sim_duration=10.0 + args.seed, collisions=1,
+                             critical_events=[CriticalEvent(uav_id=2, event="collision", sim_time=4.5, detail="UAV 1")])
     else:
         response = terminate(success=True, outcome="succeeded", message="mission completed",
                              sim_duration=10.0 + args.seed, collisions=0)

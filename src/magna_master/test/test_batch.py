@@ -57,6 +57,9 @@ def test_a_batch_runs_each_simulation_on_its_own_master_and_saves_it(make_config
             assert (folder / name).is_file(), name
         result = json.loads((folder / "result.json").read_text())
         assert result["termination"] == "ground_station" and result["final"]
+        # the ground station's critical events, carried by its report (magna_msgs/CriticalEvent)
+        assert result["critical_events"] == ([{"uav": 2, "event": "collision", "sim_time": 4.5, "detail": "UAV 1"}]
+                                             if simulation.id == 2 else [])
         assert result["files"] == ["mission.json", "simulation.bag", "stand_in.json", "uav_1.csv", "uav_2.csv",
                                    "world.json"]
         report = stand_in_report(folder)

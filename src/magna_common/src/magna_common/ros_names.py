@@ -52,9 +52,6 @@ GS_STOP = "/magna/gs/stop"
 GS_CONTINUE = "/magna/gs/continue"
 GS_CRITICAL_EVENT = "/magna/gs/critical_event"
 GS_STATE_ACTUALIZATION = "/magna/gs/state_actualization"
-# Parameter: the mission's critical events (a list of {uav, event, sim_time, detail}), set by the ground
-# station just before it reports to the Master, which copies it into result.json.
-GS_CRITICAL_EVENTS = "/magna/gs/critical_events"
 
 SIM_SPAWN_MODEL = "/magna/sim/spawn_model"
 SIM_DELETE_MODEL = "/magna/sim/delete_model"

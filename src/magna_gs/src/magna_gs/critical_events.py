@@ -2,8 +2,8 @@
 
 A UAV manager reports its own (collision, low_battery, pilot_takeover); the ground station adds those
 it notices itself: a MAVLink link lost, a UAV manager lost (magna_common.liveness). Each has the
-simulated time the ground station heard of it. They end up in result.json ("critical_events", through
-the parameter ros_names.GS_CRITICAL_EVENTS) and, in words, in its message.
+simulated time the ground station heard of it. They end up in result.json ("critical_events", sent to the
+Master in the SimulationTermination request) and, in words, in its message.
 """
 from __future__ import annotations
 
@@ -20,11 +20,6 @@ class CriticalEvent:
 
     def describe(self) -> str:
         return f"UAV {self.uav_id} {self.event} at {self.sim_time:.2f} s" + (f" ({self.detail})" if self.detail else "")
-
-    def as_record(self) -> dict:
-        """What result.json holds of it (a parameter value: XML-RPC types only)."""
-        return {"uav": self.uav_id, "event": self.event, "sim_time": round(float(self.sim_time), 3),
-                "detail": self.detail}
 
 
 def describe_all(events: Iterable[CriticalEvent]) -> str:

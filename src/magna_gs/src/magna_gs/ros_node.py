@@ -20,6 +20,7 @@ import numpy as np
 import rospy
 from geometry_msgs.msg import PoseStamped
 from magna_msgs import msg as actions
+from magna_msgs.msg import CriticalEvent as CriticalEventMsg
 from magna_msgs.msg import NamedValue
 from magna_msgs.srv import (
     AddWorldPart,
@@ -47,7 +48,6 @@ from magna_common.ros_names import (
     GS_COMMAND,
     GS_CONTINUE,
     GS_CRITICAL_EVENT,
-    GS_CRITICAL_EVENTS,
     GS_STATE_ACTUALIZATION,
     GS_STOP,
     HYPERPARAMETERS,
@@ -94,7 +94,7 @@ Topics:   /magna/gs/critical_event (std_msgs/String) to every UAV manager
           critical event names it, and its goals end at once (see magna_gs's README)
 Machine:  /magna/sm/mission/structure|status (magna_sm introspection)
 At the end: /magna/master/simulation_termination (SimulationTermination) when a Master serves it,
-            after setting /magna/gs/critical_events (the events with their simulated times).
+            with the critical events and their simulated times.
 
 Private parameters (defaults):
   ~mission_file (required)   the mission JSON
@@ -645,16 +645,15 @@ class GroundStation:
             message += "; could not start: " + "; ".join(services.setup_errors)
         if events:
             message += "; critical events: " + describe_all(events)
-        rospy.set_param(GS_CRITICAL_EVENTS, [e.as_record() for e in events])  # the Master copies it to result.json
         success, message = judge_actions(success, message, services.failed_actions.all())
-        self._report(success, outcome, message, duration, collisions, wall)
+        self._report(success, outcome, message, duration, collisions, wall, events)
         self.introspection.stop()
 
     def _close_bag(self) -> None:
         if self.bag is not None:
             self.bag.close(grace=10.0)
 
-    def _report(self, success, outcome, message, duration, collisions, wall) -> None:
+    def _report(self, success, outcome, message, duration, collisions, wall, events) -> None:
         try:
             rospy.wait_for_service(MASTER_TERMINATION, timeout=2.0)
         except rospy.ROSException:
@@ -663,7 +662,9 @@ class GroundStation:
         try:
             report = rospy.ServiceProxy(MASTER_TERMINATION, SimulationTermination)
             report(success=success, outcome=outcome, message=message, sim_duration=duration, collisions=collisions,
-                   wall_duration=wall[0], setup_wall_duration=wall[1])
+                   wall_duration=wall[0], setup_wall_duration=wall[1],
+                   critical_events=[CriticalEventMsg(uav_id=e.uav_id, event=e.event, sim_time=e.sim_time,
+                                                     detail=e.detail) for e in events])
         except rospy.ServiceException as error:
             rospy.logwarn(f"the Master did not take the result: {error}")
 

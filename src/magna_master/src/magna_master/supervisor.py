@@ -57,7 +57,7 @@ from magna_common.records import (
     TIME_LIMIT,
     SimulationResult,
 )
-from magna_common.ros_names import GS_CRITICAL_EVENTS, GS_STOP, MASTER_TERMINATION
+from magna_common.ros_names import GS_STOP, MASTER_TERMINATION
 from magna_common.storage_tree import LOGS_DIR, RESULT_FILE
 from magna_master.launch_watch import RequiredDeath, RequiredDeathWatch
 
@@ -116,7 +116,7 @@ class Termination:
     collisions: int
     wall_duration: float = 0.0  # wall s of the mission, start to end (0: not reported)
     setup_wall_duration: float = 0.0  # of those, wall s with the simulator paused for setup
-    critical_events: tuple[dict, ...] = ()  # the ground station's /magna/gs/critical_events
+    critical_events: tuple[dict, ...] = ()  # result.json's records of the ground station's critical events
 
 
 class SupervisorCore:
@@ -435,15 +435,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     rospy.init_node(NODE_NAME, disable_signals=True)
 
     def handle(request):
-        try:  # set by the ground station just before it called
-            events = rospy.get_param(GS_CRITICAL_EVENTS, [])
-        except Exception:  # the master is going away: the message still names them
-            events = []
+        events = tuple({"uav": int(e.uav_id), "event": e.event, "sim_time": round(float(e.sim_time), 3),
+                        "detail": e.detail} for e in request.critical_events)
         acknowledged = core.on_termination(Termination(
             success=bool(request.success), outcome=request.outcome, message=request.message,
             sim_duration=float(request.sim_duration), collisions=int(request.collisions),
             wall_duration=float(request.wall_duration), setup_wall_duration=float(request.setup_wall_duration),
-            critical_events=tuple(e for e in events if isinstance(e, dict)) if isinstance(events, list) else ()))
+            critical_events=events))
         return SimulationTerminationResponse(acknowledged=acknowledged)
 
     service = rospy.Service(MASTER_TERMINATION, SimulationTermination, handle)
