@@ -680,8 +680,9 @@ def main(argv=None) -> int:
         rospy.logfatal(str(error))
         return 2
     status = station.run()
-    if status == 0:
+    if status == 0 and not rospy.is_shutdown():
         # simulation.launch requires this node; ending normally, it ends the launch as Ctrl-C does, without
-        # roslaunch's red "REQUIRED process has died" (kept for crashes and errors)
+        # roslaunch's red "REQUIRED process has died" (kept for crashes and errors). Not after a SIGINT: the
+        # launch is ending already, and asking it again would wait for its SIGTERM (--sigint-timeout, 5 s).
         end_parent_launch()
     return status
