@@ -34,6 +34,7 @@ class FakeAutopilot:
         self.send_telemetry = True
         self.extended_sys_state = True
         self.answer_commands = True
+        self.disarm_when_told_to_climb = False  # once: PX4's pre-flight auto-disarm hitting as a climb begins
         self.mode = "POSCTL" if autopilot == ap.PX4 else "LOITER"
         self.armed = False
         self.position = np.zeros(3)  # NED
@@ -97,6 +98,9 @@ class FakeAutopilot:
         with self.lock:
             if kind == "SET_POSITION_TARGET_LOCAL_NED" and msg.target_system == self.system_id:
                 self.set_points.append((now, msg))
+                climbing = not msg.type_mask & 1 and msg.z < self.position[2] - 0.05  # NED: up is -z
+                if self.disarm_when_told_to_climb and climbing and self.armed and self.landed_state == 1:
+                    self.disarm_when_told_to_climb, self.armed = False, False
             elif kind == "COMMAND_LONG" and msg.target_system == self.system_id:
                 self.commands.append(msg)
                 if self.answer_commands:

@@ -69,6 +69,19 @@ def test_the_state_sequence_of_a_flight(flight):
     assert f.fake.mode == "AUTO.LAND" and f.backend.telemetry.position[2] < 0.1
 
 
+def test_a_disarm_on_the_ground_as_the_climb_begins_is_armed_again_and_the_take_off_flies(flight):
+    """PX4 disarms a UAV left armed on the ground for COM_DISARM_PRFLT s. ual_mavlink (arming auto) armed it
+    on connecting, so a take-off that comes just as that time runs out meets the disarm before it leaves the
+    ground: it arms again and climbs, instead of failing with "was disarmed"."""
+    f = flight()
+    landed_and_armed(f)
+    f.fake.disarm_when_told_to_climb = True
+    f.backend.take_off(1.0, blocking=True)
+    assert not f.fake.disarm_when_told_to_climb  # the disarm did happen, on the first climbing set-point
+    assert f.backend.state == FLYING_AUTO and f.fake.armed
+    assert f.backend.telemetry.position[2] == pytest.approx(1.0, abs=0.165)
+
+
 def test_guards_and_nan_refusals_say_why(flight):
     f = flight()
     landed_and_armed(f)

@@ -64,6 +64,7 @@ AUTO, PILOT = "auto", "pilot"
 LAND_MODE = {ap.PX4: "AUTO.LAND", ap.ARDUPILOT: "LAND"}
 GO_TO = "go_to_waypoint"
 MODE_RETRY = 0.3  # s between requests of a mode the autopilot did not accept yet
+MAX_ARM_AGAIN = 2  # a take-off disarmed on the ground this often more is refused (something else disarms it)
 
 
 @dataclass(frozen=True)
@@ -106,6 +107,7 @@ class Operation:
         self.yaw = 0.0
         self.height = 0.0
         self.climb_started = 0.0
+        self.armed_again = 0  # times a take-off armed again after a disarm on the ground
 
     @property
     def finished(self) -> bool:
@@ -240,6 +242,8 @@ class UalBackend:
         if not link_ok and t.heartbeat_time is not None:
             return self._fail(op, f"{op.name} interrupted: {self.link_problem}")
         if op.name == TAKE_OFF_CALL:
+            if op.phase == "climb" and not t.armed and self._may_arm_again(op, t):
+                return self._arm_again(op)
             if op.phase in ("pilot", "climb", "autopilot climb", "arrive") and not t.armed:
                 return self._fail(op, f"take_off interrupted: {uav} was disarmed")
             if op.phase in ("climb", "arrive") and not t.follows_set_points:
@@ -273,6 +277,34 @@ class UalBackend:
                 op.done = True
             elif op.arrival.stuck:
                 self._fail(op, f"{op.name} not reached: {uav} is {op.arrival.stuck}")
+
+    def _may_arm_again(self, op: Operation, t: Telemetry) -> bool:
+        """A disarm before the climb left the ground, with arming auto: the autopilot's pre-flight auto-disarm
+        (PX4's COM_DISARM_PRFLT: armed on the ground too long) met a take-off that came just then. ual_mavlink
+        armed the UAV itself, so it arms it again, as an operator would; in the air a disarm stays a failure."""
+        on_ground = t.landed_state == ON_GROUND or t.position[2] < op.start[2] + 0.1
+        return self.settings.arming == AUTO and on_ground and op.armed_again < MAX_ARM_AGAIN
+
+    def _arm_again(self, op: Operation) -> None:
+        uav = f"UAV {self.settings.uav_id}"
+        op.armed_again += 1
+        op.phase = "arming"  # the set-points hold op.start meanwhile (PX4 wants them before OFFBOARD)
+        self.log.warning(f"{uav}: disarmed on the ground as the take-off began (the autopilot's pre-flight "
+                         f"auto-disarm?): arming it again")
+
+        def arm_and_climb() -> None:
+            try:
+                self._arm()
+            except (CommandFailed, CommandRefused) as err:
+                with self._lock:
+                    self._fail(op, f"take_off interrupted: {uav} was disarmed on the ground and did not arm "
+                                   f"again: {err}")
+                return
+            with self._lock:
+                if not op.finished:
+                    op.climb_started, op.phase = self._now, "climb"
+
+        threading.Thread(target=arm_and_climb, name="ual_mavlink arming again", daemon=True).start()
 
     def _arrive(self, op: Operation, target, yaw: float | None, now: float) -> None:
         s = self.settings
