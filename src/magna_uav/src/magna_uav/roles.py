@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -84,8 +85,9 @@ class UalManoeuvre:
 
     noun: "take-off" or "landing", for the messages; during: the state while it runs (TAKING_OFF, LANDING);
     before: the states it leaves (seen again after `during`, the UAL gave it up); interrupting: states that
-    end it; blocked_from: where an obstacle would stop it ("above", "under"). `stuck` is the message when the
-    distance left stops shrinking (Stall)."""
+    end it; blocked_from: where an obstacle would stop it ("above", "under"). `stuck` makes the message, from the
+    nearest distance reached, when the distance left stops shrinking (Stall); called only then, so a control step
+    formats no message it does not use."""
 
     def __init__(self, noun: str, during: int, before: tuple[int, ...], interrupting: tuple[int, ...],
                  blocked_from: str):
@@ -95,7 +97,7 @@ class UalManoeuvre:
         self.accepted = False  # the UAL showed `during` since it was asked
         self.stall = Stall()
 
-    def failure(self, state: int, z: float, elapsed: float, distance_left: float, stuck: str) -> str:
+    def failure(self, state: int, z: float, elapsed: float, distance_left: float, stuck: Callable[[float], str]) -> str:
         self.accepted = self.accepted or state == self.during
         if state in self.before:
             if self.accepted:
@@ -107,8 +109,8 @@ class UalManoeuvre:
         elif state in self.interrupting:
             return f"{self.noun} interrupted: the UAL reports {state_name(state)} at z = {z:.2f} m"
         if self.stall.stuck(None, distance_left, elapsed):
-            return (f"{stuck} in {STALL_TIME:g} s (UAL state {state_name(state)}): something {self.blocked_from} "
-                    f"it, or the UAL holds it")
+            return (f"{stuck(self.stall.best)} in {STALL_TIME:g} s (UAL state {state_name(state)}): something "
+                    f"{self.blocked_from} it, or the UAL holds it")
         return ""
 
 
@@ -179,12 +181,13 @@ class TakeOffRole(Role):
 
     def _failure(self, own, elapsed: float) -> str:
         """Why the take-off the UAL accepted has failed ("" while it goes on)."""
-        assert self.target_z is not None  # asked before any failure is looked for
+        target_z = self.target_z
+        assert target_z is not None  # asked before any failure is looked for
         z = float(own.position[2])
         # "something above it": magna_sim keeps a blocked take-off TAKING_OFF for ever
-        return self.manoeuvre.failure(own.ual_state, z, elapsed, self.target_z - z,
-                                      f"take-off stuck: climbed no nearer than {self.manoeuvre.stall.best:.2f} m "
-                                      f"below {self.target_z:.2f} m")
+        return self.manoeuvre.failure(own.ual_state, z, elapsed, target_z - z,
+                                      lambda best: f"take-off stuck: climbed no nearer than {best:.2f} m "
+                                                   f"below {target_z:.2f} m")
 
 
 class LandRole(Role):
@@ -216,7 +219,7 @@ class LandRole(Role):
     def _failure(self, own, elapsed: float) -> str:
         z = float(own.position[2])
         return self.manoeuvre.failure(own.ual_state, z, elapsed, z,
-                                      f"landing stuck: came no lower than z = {self.manoeuvre.stall.best:.2f} m")
+                                      lambda best: f"landing stuck: came no lower than z = {best:.2f} m")
 
 
 class FollowPathRole(Role):
