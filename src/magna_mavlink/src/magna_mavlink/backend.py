@@ -225,16 +225,27 @@ class UalBackend:
             return
         self._last_arm_try = now
         self._arming_since = now
-        threading.Thread(target=self._arm_on_the_ground, name="ual_mavlink arming", daemon=True).start()
+        self._arm_in_background("ual_mavlink arming", self._armed_on_the_ground)
 
-    def _arm_on_the_ground(self) -> None:
-        try:
-            self._arm()
-        except (CommandFailed, CommandRefused) as err:
+    def _armed_on_the_ground(self, err: CommandFailed | CommandRefused | None) -> None:
+        """The end of an arming `_keep_armed` began; a failed one is tried again arm_retry s later."""
+        if err is not None:
             self.log.warning(f"UAV {self.settings.uav_id}: arming: {err}; trying again in "
                              f"{self.settings.arm_retry:g} s")
-        finally:
-            self._arming_since = None
+        self._arming_since = None
+
+    def _arm_in_background(self, name: str, then: Callable[[CommandFailed | CommandRefused | None], None]) -> None:
+        """Arm on a thread of its own, as the ticks must go on meanwhile (the set-points PX4 wants before OFFBOARD,
+        the telemetry that shows it armed); then `then(None)`, or `then(err)` with why it did not arm."""
+        def arm() -> None:
+            try:
+                self._arm()
+            except (CommandFailed, CommandRefused) as err:
+                then(err)
+                return
+            then(None)
+
+        threading.Thread(target=arm, name=name, daemon=True).start()
 
     # --- progress of the running operation ------------------------------------------------------------------------
     def _progress(self, op: Operation, t: Telemetry, now: float, link_ok: bool) -> None:
@@ -292,19 +303,15 @@ class UalBackend:
         self.log.warning(f"{uav}: disarmed on the ground as the take-off began (the autopilot's pre-flight "
                          f"auto-disarm?): arming it again")
 
-        def arm_and_climb() -> None:
-            try:
-                self._arm()
-            except (CommandFailed, CommandRefused) as err:
-                with self._lock:
+        def climb_once_armed(err: CommandFailed | CommandRefused | None) -> None:
+            with self._lock:
+                if err is not None:
                     self._fail(op, f"take_off interrupted: {uav} was disarmed on the ground and did not arm "
                                    f"again: {err}")
-                return
-            with self._lock:
-                if not op.finished:
+                elif not op.finished:
                     op.climb_started, op.phase = self._now, "climb"
 
-        threading.Thread(target=arm_and_climb, name="ual_mavlink arming again", daemon=True).start()
+        self._arm_in_background("ual_mavlink arming again", climb_once_armed)
 
     def _arrive(self, op: Operation, target, yaw: float | None, now: float) -> None:
         s = self.settings
