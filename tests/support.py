@@ -2,8 +2,10 @@
 import importlib.util
 import os
 import re
+import sys
 import time
 from pathlib import Path
+from types import ModuleType
 
 ROOT = Path(__file__).resolve().parents[1]
 # The real ROS-MAGNA files, read in place (never copied into the project): ../shared/ros_magna_corpus.
@@ -32,6 +34,18 @@ def wait_until(predicate, what: str, timeout: float = WAIT, poll: float = 0.005)
             return
         time.sleep(poll)
     raise AssertionError(f"timed out waiting for {what}")
+
+
+def load_module(path: Path, name: str | None = None) -> ModuleType:
+    """The Python file at `path` as a module named `name` (its file name without .py by default): scripts and
+    test helpers that are no package's modules. Its `if __name__ == "__main__"` part does not run. Registered in
+    sys.modules under that name first, as dataclasses look their module up there while a class is made."""
+    spec = importlib.util.spec_from_file_location(name or Path(path).stem, path)
+    assert spec is not None and spec.loader is not None, f"{path} is no Python file"
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    return module
 
 
 def ros_nodes(root: Path = ROOT) -> list[tuple[str, str]]:

@@ -1,6 +1,5 @@
 """The benchmarks' command lines: `python bench/X.py` runs from any Python, and their options follow the one
 CLI vocabulary (-o/--output, --force, --rtf max|FACTOR) with the old spellings kept for a release."""
-import importlib.util
 import subprocess
 import sys
 from pathlib import Path
@@ -8,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from magna_common.cli_vocabulary import deprecation_line
-from tests.support import ROOT
+from tests.support import ROOT, load_module
 
 BENCH = ROOT / "bench"
 SCRIPTS = sorted(p.name for p in BENCH.glob("*.py"))
@@ -16,11 +15,7 @@ SCRIPTS = sorted(p.name for p in BENCH.glob("*.py"))
 
 def load(name: str):
     """A bench script as a module (its `if __name__ == "__main__"` parts do not run)."""
-    spec = importlib.util.spec_from_file_location(f"bench_{name}", BENCH / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # dataclasses look their module up there
-    spec.loader.exec_module(module)
-    return module
+    return load_module(BENCH / f"{name}.py", f"bench_{name}")
 
 
 @pytest.mark.parametrize("script", SCRIPTS)

@@ -9,7 +9,6 @@ mission with UAV 2 `real` (magna_mavlink's scripted PX4 over UDP as its autopilo
 mission runs at real time) refuses every command
 that would move it, "all" included, flies the ones for UAV 1, and still answers questions about UAV 2.
 """
-import importlib.util
 import json
 import os
 import subprocess
@@ -20,18 +19,16 @@ from pathlib import Path
 import pytest
 
 from magna_common.ports import free_udp_ports
-from tests.support import ROOT
+from tests.support import ROOT, load_module
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(300)]
 
 
 def fake_autopilot_class():
     """magna_mavlink's scripted autopilot (a test helper of that package, so loaded from its file)."""
-    spec = importlib.util.spec_from_file_location(
-        "fake_autopilot", ROOT / "src" / "magna_mavlink" / "test" / "fake_autopilot.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module.FakeAutopilot
+    # its own name: magna_mavlink's conftest imports the same file as fake_autopilot
+    return load_module(ROOT / "src" / "magna_mavlink" / "test" / "fake_autopilot.py",
+                       "magna_mavlink_fake_autopilot").FakeAutopilot
 
 
 def wall_wait(predicate, what, seconds=120.0):

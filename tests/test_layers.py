@@ -5,25 +5,17 @@ seen to catch what it should, then on this workspace.
 """
 from __future__ import annotations
 
-import importlib.util
-import sys
 import textwrap
 from pathlib import Path
 
 import pytest
 
+from tests.support import load_module
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def _load_checker():
-    spec = importlib.util.spec_from_file_location("import_graph", ROOT / "scripts" / "import_graph.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["import_graph"] = module  # dataclasses look their module up while the class is made
-    spec.loader.exec_module(module)
-    return module
-
-
-graph_checker = _load_checker()
+graph_checker = load_module(ROOT / "scripts" / "import_graph.py")
 
 LAYERS = """
 [tool.magna.layers]

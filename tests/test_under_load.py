@@ -1,5 +1,4 @@
 """scripts/under_load.py: its runs count failures and skips as unclean, its busy processes end with it."""
-import importlib.util
 import re
 import subprocess
 import sys
@@ -8,17 +7,13 @@ import textwrap
 import pytest
 
 from magna_common.processes import pid_alive
-from tests.support import ROOT
+from tests.support import ROOT, load_module
 
 SCRIPT = ROOT / "scripts" / "under_load.py"
 
 
 def load():
-    spec = importlib.util.spec_from_file_location("under_load", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # its dataclass looks itself up there
-    spec.loader.exec_module(module)
-    return module
+    return load_module(SCRIPT)
 
 
 def test_a_failure_or_a_skip_makes_the_proof_fail_and_the_hogs_end(tmp_path):

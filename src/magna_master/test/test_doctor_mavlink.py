@@ -4,12 +4,11 @@ with the URL and the fix when no vehicle answers (exit 1), a refused URL (exit 2
 The vehicle is magna_mavlink's scripted test vehicle (a UDP socket in this process speaking MAVLink 2)."""
 from __future__ import annotations
 
-import importlib.util
 import subprocess
-import sys
 from pathlib import Path
 
 from magna_common.ports import free_port
+from tests.support import load_module
 
 ROOT = Path(__file__).resolve().parents[3]
 TIMEOUT = 120  # s for the whole command: a guard against hangs
@@ -17,12 +16,7 @@ TIMEOUT = 120  # s for the whole command: a guard against hangs
 
 def scripted_vehicle_module():
     """magna_mavlink's test of link_check, for its ScriptedVehicle (test folders are not packages)."""
-    path = ROOT / "src" / "magna_mavlink" / "test" / "test_link_check.py"
-    spec = importlib.util.spec_from_file_location("magna_mavlink_scripted_vehicle", path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
+    return load_module(ROOT / "src" / "magna_mavlink" / "test" / "test_link_check.py", "magna_mavlink_scripted_vehicle")
 
 
 def doctor(*args: str) -> subprocess.CompletedProcess:

@@ -7,19 +7,21 @@ servers of the UAV ids given, e.g. ual_mavlink bridges in front of magna_sim's M
 The same cases magna_sim's rostest runs, not a copy: they are loaded from that file. Exit status 0 when all pass.
 Started by test_live_ual_mavlink.py with ROS_MASTER_URI set to its master.
 """
-import importlib.util
 import sys
 import unittest
 from pathlib import Path
+
+from magna_common.workspace import find_root
+
+sys.path.append(str(find_root()))  # tests/ sits at the repository root
+
+from tests.support import load_module  # noqa: E402
 
 CASES = Path(__file__).resolve().parents[2] / "magna_sim" / "test" / "ual_api_rostest.py"
 
 
 def load_cases():
-    spec = importlib.util.spec_from_file_location("magna_sim_ual_api_cases", CASES)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_module(CASES, "magna_sim_ual_api_cases")
 
 
 def main(argv) -> int:

@@ -6,7 +6,6 @@ run is the session's `recorded_run` (root conftest.py); the rest are hand-made r
 """
 from __future__ import annotations
 
-import importlib.util
 import io
 from pathlib import Path
 
@@ -22,6 +21,7 @@ from magna_viz.recording import Proximity, Recording, Samples, UavRecord, load_r
 from magna_worlds.draw import OBSTACLE_COLOR
 from magna_worlds.shapes import ShapeSpec
 from magna_worlds.transforms import Frame
+from tests.support import load_module
 
 ROOT = Path(__file__).resolve().parents[3]
 SIZE = (round(plots.FIGSIZE[1] * plots.DPI), round(plots.FIGSIZE[0] * plots.DPI))  # (rows, columns) of pixels
@@ -140,9 +140,7 @@ def test_the_latency_distribution_draws_each_group_in_its_colour(tmp_path):
 
 
 def test_the_command_latency_bench_draws_with_the_shared_function(tmp_path):
-    spec = importlib.util.spec_from_file_location("command_latency_bench", ROOT / "bench" / "command_latency.py")
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
+    bench = load_module(ROOT / "bench" / "command_latency.py", "command_latency_bench")
     rng = np.random.default_rng(1)
     rows = [{"n": n, "latency": list(rng.uniform(0.02, 0.06, 30))} for n in (1, 2, 10)] + [{"n": 3, "latency": []}]
     bench.draw(rows, tmp_path / "pictures" / "command_latency.png", "1")
