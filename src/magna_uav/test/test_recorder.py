@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from magna_uav import recorder
-from magna_uav.recorder import Recorder, column_kind, columns, depth_path, read_csv, read_depth
+from magna_uav.recorder import HeardStamps, Recorder, column_kind, columns, depth_path, read_csv, read_depth
 from magna_uav.world_view import AgentState, Obstacle, WorldView
 
 README = Path(__file__).resolve().parents[1] / "README.md"
@@ -151,13 +151,20 @@ def test_the_goal_target_velocity_and_distance_follow_the_goal_and_are_nan_witho
         record_one(rec, make_view(), goal_velocity=[1.0, 2.0])
 
 
-def test_each_new_row_goes_to_on_row_as_recorded():
+def test_each_new_row_goes_to_on_row_as_recorded_with_the_stamps_of_its_messages():
     seen = []
-    rec = Recorder(1, [2], on_row=lambda index, row: seen.append((index, row)))
-    record_one(rec, make_view(), feasible=True)
-    record_one(rec, make_view(), time=1.6, algorithm="ual", chosen_velocity=[0, 0, 0])
-    assert seen == [(0, rec.row(0)), (1, rec.row(1))]
+    rec = Recorder(1, [3, 2], on_row=lambda index, row, heard: seen.append((index, row, heard)))
+    view = make_view()
+    record_one(rec, view, feasible=True)
+    view.update_agent(AgentState(3, [0, 3, 1], pose_stamp_ns=7_000_000_001, velocity_stamp_ns=6_900_000_000))
+    view.update_agent(AgentState(1, [0, 0, 1], pose_stamp_ns=7_100_000_000, velocity_stamp_ns=7_050_000_000))
+    record_one(rec, view, time=1.6, algorithm="ual", chosen_velocity=[0, 0, 0])
+    assert [(index, row) for index, row, _ in seen] == [(0, rec.row(0)), (1, rec.row(1))]
     assert (seen[1][1]["time"], seen[1][1]["algorithm"]) == (1.6, "ual")
+    # own first, then the others in the CSV's order (by id); only the UAVs in the view (3 came before row 1)
+    assert seen[0][2] == [HeardStamps(1, 0, 0), HeardStamps(2, 0, 0)]
+    assert seen[1][2] == [HeardStamps(1, 7_100_000_000, 7_050_000_000), HeardStamps(2, 0, 0),
+                          HeardStamps(3, 7_000_000_001, 6_900_000_000)]
 
 
 def test_set_outcome_marks_the_last_row():
@@ -355,7 +362,8 @@ def test_a_row_becomes_the_navigation_step_with_its_values():
     record_one(rec, make_view(), time=12.3, role="agent_ad", goal_velocity=[1.0, -0.5, 0.25], goal_distance=2.0,
                feasible=False)
     record_one(rec, make_view(), time=0.1 + 0.2, algorithm="ual", goal_position=None, chosen_velocity=[0, 0, 0])
-    first, second = navigation_msg(0, rec.row(0), 3), navigation_msg(1, rec.row(1), 4)
+    heard = [HeardStamps(1, 12_299_999_999, 12_266_666_667), HeardStamps(2, 12_250_000_000, 0)]
+    first, second = navigation_msg(0, rec.row(0), 3, heard), navigation_msg(1, rec.row(1), 4, [])
     assert (first.row, first.role_number, first.role, first.algorithm) == (0, 3, "agent_ad", "orca3")
     assert (first.header.stamp.secs, first.header.stamp.nsecs, first.header.frame_id) == (12, 300000000, "map")
     assert [first.goal.x, first.goal.y, first.goal.z] == [5, 0, 1]
@@ -363,6 +371,10 @@ def test_a_row_becomes_the_navigation_step_with_its_values():
         [1.0, -0.5, 0.25, 2.0]
     assert [first.selected_velocity.x, first.selected_velocity.y, first.selected_velocity.z] == [0.5, 0, 0]
     assert first.feasible == NavigationStep.INFEASIBLE == 0
+    assert list(first.uav_ids) == [1, 2]
+    assert [(t.secs, t.nsecs) for t in first.pose_stamps] == [(12, 299999999), (12, 250000000)]
+    assert [(t.secs, t.nsecs) for t in first.velocity_stamps] == [(12, 266666667), (0, 0)]  # 0: none heard
+    assert (list(second.uav_ids), list(second.pose_stamps), list(second.velocity_stamps)) == ([], [], [])
     # rounded to the ns (0.30000000000000004 s), NaN where the row has NaN, unknown feasibility -1
     assert (second.header.stamp.secs, second.header.stamp.nsecs) == (0, 300000000)
     assert math.isnan(second.goal.x) and math.isnan(second.goal_velocity.y) and math.isnan(second.goal_distance)

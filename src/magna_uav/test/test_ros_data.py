@@ -217,6 +217,13 @@ def test_an_agent_enters_the_view_at_its_first_pose_with_what_was_heard_before()
     assert view.agent(2) is not before and before.battery == pytest.approx(0.4)  # replaced, never changed in place
     data.on_pose(1, pose(0, 0, 0), now=7.0)
     assert view.own.stamp == 7.0  # a pose without a stamp takes the receive time
+    # the exact stamps of the messages held, in ns, for the recorder to name them; velocity 0: none heard
+    assert (a.pose_stamp_ns, a.velocity_stamp_ns) == (12_500_000_000, 1)  # unstamped, heard at now=0
+    assert (view.own.pose_stamp_ns, view.own.velocity_stamp_ns) == (7_000_000_000, 0)
+    stamped = twist(0, 0, 0, 0.0)
+    stamped.header.stamp.secs, stamped.header.stamp.nsecs = 13, 33_333_333
+    data.on_velocity(1, stamped, now=99.0)
+    assert view.own.velocity_stamp_ns == 13_033_333_333
     assert view.nearest_agents()[0][1] == pytest.approx(math.sqrt(16 + 25 + 36) - 0.8)
 
 
@@ -238,6 +245,7 @@ def test_odom_gives_pose_and_the_body_twist_turned_into_map():
     # yawed 90 degrees: the body's x axis is map's y
     np.testing.assert_allclose(a.velocity, [0.0, 1.0, 0.5], atol=1e-12)
     assert (a.yaw, a.yaw_rate, a.stamp) == (pytest.approx(math.pi / 2), pytest.approx(0.3), 2.5)
+    assert a.pose_stamp_ns == a.velocity_stamp_ns == 2_500_000_000  # both from the one message
 
 
 @pytest.mark.parametrize("seed", range(5))

@@ -27,6 +27,7 @@ import threading
 from collections import Counter
 from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -138,11 +139,26 @@ class RowStream:
             self._fd = None
 
 
+class HeardStamps(NamedTuple):
+    """One UAV's messages a row came from, by stamp (ns; `AgentState.pose_stamp_ns`, `velocity_stamp_ns`)."""
+
+    uav_id: int
+    pose_ns: int
+    velocity_ns: int
+
+
+def heard_stamps(view: WorldView, other_ids: Sequence[int]) -> list[HeardStamps]:
+    """The UAVs in `view` (own first, then `other_ids` in order) with the stamps of the messages the view holds."""
+    ids = [view.own_id, *other_ids]
+    return [HeardStamps(state.id, state.pose_stamp_ns, state.velocity_stamp_ns)
+            for state in (view.agent(i) for i in ids) if state is not None]
+
+
 class Recorder:
     """Rows of one UAV's control steps; see `columns` for what a row holds."""
 
     def __init__(self, uav_id: int, other_ids: Iterable[int], n_obstacles: int = DEFAULT_OBSTACLES,
-                 depth: bool = False, on_row: Callable[[int, dict], None] | None = None):
+                 depth: bool = False, on_row: Callable[[int, dict, list[HeardStamps]], None] | None = None):
         self.uav_id = int(uav_id)
         self.other_ids = _other_ids(other_ids)
         if self.uav_id in self.other_ids:
@@ -155,8 +171,9 @@ class Recorder:
         self._frame_rows: list[int] = []
         # the view's depth array last stored: a frame is kept once, on the row it arrived
         self._last_depth: np.ndarray | None = None
-        # Called with each new row's index and {column: value} (the node publishes it as a
-        # NavigationStep, so a bag carries the same numbers as the CSV).
+        # Called with each new row's index, {column: value} and the stamps of the messages the row came
+        # from (`heard_stamps`): the node publishes it as a NavigationStep, so a bag carries the same
+        # numbers as the CSV and names the poses to rebuild the rest from.
         self.on_row = on_row
         self.stream: RowStream | None = None  # the CSV the rows go to as they are final (stream_to)
 
@@ -265,7 +282,7 @@ class Recorder:
             self._frame_rows.append(index)
         self._stream_rows(final=False)  # the previous row is final now
         if self.on_row is not None:
-            self.on_row(index, self.row(index))
+            self.on_row(index, self.row(index), heard_stamps(view, self.other_ids))
         return index
 
     def set_outcome(self, outcome: str) -> None:
@@ -444,5 +461,5 @@ def _parse(cell: str, kind: str):
     return float(cell)
 
 
-__all__ = ["DEFAULT_OBSTACLES", "GOAL_TARGET", "LEGACY_MISSING", "Recorder", "RowStream", "column_kind", "columns",
-           "depth_path", "read_csv", "read_depth"]
+__all__ = ["DEFAULT_OBSTACLES", "GOAL_TARGET", "LEGACY_MISSING", "HeardStamps", "Recorder", "RowStream", "column_kind",
+           "columns", "depth_path", "heard_stamps", "read_csv", "read_depth"]

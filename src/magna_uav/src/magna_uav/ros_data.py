@@ -253,6 +253,12 @@ def depth_image(msg: Image) -> np.ndarray:
 
 # --- the updater ------------------------------------------------------------------------------------------------
 
+def _stamp_ns(msg, now: float) -> int:
+    """The message's header stamp in ns, or `now` (when it came) if it has none; never 0 (0 means none heard)."""
+    stamp = msg.header.stamp
+    return int(stamp.secs) * 10**9 + int(stamp.nsecs) or max(1, round(now * 1e9))
+
+
 class WorldUpdater:
     """Turns UAL, battery, depth and marker messages into WorldView updates, under `lock`."""
 
@@ -278,11 +284,13 @@ class WorldUpdater:
     def on_pose(self, agent_id: int, msg: PoseStamped, now: float = 0.0) -> None:
         p, q = msg.pose.position, msg.pose.orientation
         stamp = msg.header.stamp.to_sec() or now
-        self._update(agent_id, position=(p.x, p.y, p.z), orientation=(q.x, q.y, q.z, q.w), stamp=stamp, pose=True)
+        self._update(agent_id, position=(p.x, p.y, p.z), orientation=(q.x, q.y, q.z, q.w), stamp=stamp,
+                     pose_stamp_ns=_stamp_ns(msg, now), pose=True)
 
-    def on_velocity(self, agent_id: int, msg: TwistStamped) -> None:
+    def on_velocity(self, agent_id: int, msg: TwistStamped, now: float = 0.0) -> None:
         v = msg.twist.linear
-        self._update(agent_id, velocity=(v.x, v.y, v.z), yaw_rate=float(msg.twist.angular.z))
+        self._update(agent_id, velocity=(v.x, v.y, v.z), yaw_rate=float(msg.twist.angular.z),
+                     velocity_stamp_ns=_stamp_ns(msg, now))
 
     def on_odom(self, agent_id: int, msg: Odometry, now: float = 0.0) -> None:
         """Pose and velocity at once; the twist is in the body frame (child_frame_id), turned into map."""
@@ -292,8 +300,9 @@ class WorldUpdater:
         velocity = _rotate_out_of_body(orientation, (linear.x, linear.y, linear.z))
         spin = _rotate_out_of_body(orientation, (angular.x, angular.y, angular.z))
         stamp = msg.header.stamp.to_sec() or now
+        stamp_ns = _stamp_ns(msg, now)
         self._update(agent_id, position=(p.x, p.y, p.z), orientation=orientation, velocity=velocity,
-                     yaw_rate=spin[2], stamp=stamp, pose=True)
+                     yaw_rate=spin[2], stamp=stamp, pose_stamp_ns=stamp_ns, velocity_stamp_ns=stamp_ns, pose=True)
 
     def on_state(self, agent_id: int, msg: State) -> None:
         self._update(agent_id, ual_state=int(msg.state))
@@ -338,7 +347,7 @@ class RosWorldData(WorldUpdater):
 
         own = topics(view.own_id)
         sub(own["pose"], PoseStamped, self._pose, view.own_id)
-        sub(own["velocity"], TwistStamped, self.on_velocity, view.own_id)
+        sub(own["velocity"], TwistStamped, self._velocity, view.own_id)
         for i in self.agent_ids:
             if i != view.own_id:
                 sub(topics(i)["odom"], Odometry, self._odom, i)
@@ -350,6 +359,9 @@ class RosWorldData(WorldUpdater):
 
     def _pose(self, agent_id: int, msg: PoseStamped) -> None:
         self.on_pose(agent_id, msg, now=self._rospy.get_time())
+
+    def _velocity(self, agent_id: int, msg: TwistStamped) -> None:
+        self.on_velocity(agent_id, msg, now=self._rospy.get_time())
 
     def _odom(self, agent_id: int, msg: Odometry) -> None:
         self.on_odom(agent_id, msg, now=self._rospy.get_time())

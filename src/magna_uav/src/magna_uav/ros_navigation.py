@@ -4,14 +4,22 @@ from __future__ import annotations
 
 import collections
 import threading
+from collections.abc import Sequence
 
 import rospy
 from geometry_msgs.msg import Point, Vector3
 from magna_msgs.msg import NavigationStep
 
+from magna_uav.recorder import HeardStamps
 
-def navigation_msg(index: int, row: dict, role_number: int) -> NavigationStep:
-    """The NavigationStep of the recorder's row `index` (`Recorder.row`): the very numbers its CSV row gets."""
+
+def _time(nanoseconds: int) -> rospy.Time:
+    return rospy.Time(nanoseconds // 10**9, nanoseconds % 10**9)
+
+
+def navigation_msg(index: int, row: dict, role_number: int, heard: Sequence[HeardStamps]) -> NavigationStep:
+    """The NavigationStep of the recorder's row `index` (`Recorder.row`): the very numbers its CSV row gets,
+    and the stamps of the messages they came from (`heard`, `recorder.heard_stamps`)."""
     msg = NavigationStep(row=index, role_number=role_number, role=row["role"], algorithm=row["algorithm"],
                          goal=Point(*(row[f"goal.{a}"] for a in "xyz")),
                          goal_velocity=Vector3(*(row[f"goal_vel.{a}"] for a in "xyz")),
@@ -20,9 +28,11 @@ def navigation_msg(index: int, row: dict, role_number: int) -> NavigationStep:
                          feasible=NavigationStep.FEASIBILITY_UNKNOWN if row["feasible"] is None else row["feasible"])
     # rounded to the nanosecond, not truncated as Time.from_sec does: a bag reader compares it
     # with the UAL stamps of the same simulated instant
-    nanoseconds = round(row["time"] * 1e9)
-    msg.header.stamp = rospy.Time(nanoseconds // 10**9, nanoseconds % 10**9)
+    msg.header.stamp = _time(round(row["time"] * 1e9))
     msg.header.frame_id = "map"
+    msg.uav_ids = [h.uav_id for h in heard]
+    msg.pose_stamps = [_time(h.pose_ns) for h in heard]
+    msg.velocity_stamps = [_time(h.velocity_ns) for h in heard]
     return msg
 
 

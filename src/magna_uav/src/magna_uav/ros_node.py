@@ -32,7 +32,7 @@ from magna_uav.manager import ABORTED, PILOT_TAKEOVER, PREEMPTED, RoleResult, Ua
 from magna_uav.nai.interface import NavigationInterface
 from magna_uav.order_desk import Order, OrderDesk
 from magna_uav.paths import path_msg
-from magna_uav.recorder import Recorder
+from magna_uav.recorder import HeardStamps, Recorder
 from magna_uav.reporter import Reporter
 from magna_uav.roles import FollowPathRole
 from magna_uav.ros_data import RosWorldData
@@ -287,9 +287,9 @@ class UavManagerNode:
         self.written.add(written.resolve())
         return "succeeded", f"{rows} rows written to {written}"
 
-    def _publish_navigation(self, index: int, row: dict) -> None:
+    def _publish_navigation(self, index: int, row: dict, heard: list[HeardStamps]) -> None:
         try:
-            self.navigation.publish(navigation_msg(index, row, self.role_number))
+            self.navigation.publish(navigation_msg(index, row, self.role_number, heard))
         except rospy.ROSException:  # shutting down: the row is recorded all the same
             pass
         stream = self.recorder.stream

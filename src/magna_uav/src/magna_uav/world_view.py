@@ -33,6 +33,10 @@ class AgentState:
     ual_state: int = 0  # uav_abstraction_layer/State constant
     battery: float = UNKNOWN_BATTERY  # remaining charge, 0..1
     stamp: float = 0.0  # s (sim time) of the pose
+    # The messages this state came from, as integer ns (exact, unlike `stamp`), for the recorder to name them:
+    # their header stamps, or when they came if unstamped; velocity 0: none heard yet.
+    pose_stamp_ns: int = 0
+    velocity_stamp_ns: int = 0
     safety_radius: float = 0.3  # m, from the UAV's airframe
     depth: np.ndarray | None = None  # latest depth image (metres), when the camera is on
 
