@@ -8,20 +8,26 @@ step, so the steps can be rebuilt where no CSV exists (a real flight's bag, a lo
   its row index. One step per row index, in row order: a repeat (the manager replays its steps
   to a late subscriber, see magna_uav's README) is dropped. So the steps are the CSV's rows,
   except rows whose message the bag missed (none, normally).
-- own and other UAVs' position and velocity: the newest `/uav_{id}/ual/pose` and
-  `/uav_{id}/ual/velocity` stamped at or before the step (a zero stamp counts as the time the bag
-  got the message), NaN before the bag's first one (the ground station lets the bag connect to
-  them before any UAV moves; bags made before it did may miss the first take-off steps, as
-  rosbag finds a new topic only within about a wall second). The CSV holds the pose the manager
-  had last heard instead: mostly the same message, else a neighbour in the simulator's 30 Hz
-  stream (one period of flight, < 0.07 m at 2 m/s), and rarely, when the manager's subscriber
-  stalled, one a few tenths of a second old (mlr/tests/test_recording.py measures it). Others'
-  gap = centre distance minus both safety radii (the airframes' `safety_radius`, the models of
+- own and other UAVs' position and velocity: the very `/uav_{id}/ual/pose` and
+  `/uav_{id}/ual/velocity` messages the manager used, which each step names by their stamps
+  (`uav_ids`, `pose_stamps`, `velocity_stamps`; for the other UAVs the manager hears their odom,
+  stamped as the pose and velocity of the same instant): the newest one stamped at or before the
+  named stamp, which is that very message when the bag has it. A UAV the step does not name was
+  not in the manager's view yet: NaN, as in the CSV; a zero velocity stamp means no velocity heard
+  yet: zero, as in the CSV. Bags made before the steps named their messages (no `uav_ids`) take
+  the newest stamped at or before the step itself: mostly the message the manager used, else a
+  neighbour in the 30 Hz stream, depending on when the manager's subscriber got it. A zero stamp
+  counts as the time the bag got the message. Before the bag's first message of a UAV: NaN (the
+  ground station lets the bag connect before any UAV moves; bags made before it did may miss the
+  first take-off steps, as rosbag finds a new topic only within about a wall second). Others' gap =
+  centre distance minus both safety radii (the airframes' `safety_radius`, the models of
   `mission.json`), as the view computes it.
 - obstacles: the managers learn them only from the world node's `/magna/world/markers`, as the
   obstacles (real shape and bounding sphere) `magna_uav.ros_data.ObstacleMarkers` makes of the
   "obstacles" markers; the same class replays the bagged marker messages up to each step (by the
-  time the bag got them), so a world part added or deleted mid-mission counts from then on. They
+  time the bag got them), so a world part added or deleted mid-mission counts from then on. The
+  markers are latched and have no stamp: a manager may have them a step or two before the bag
+  does, so the bag may know fewer obstacles than the CSV in those steps, never more. They
   are ranked by the gap between own safety sphere and the obstacle's real shape, nearest first,
   ties in the markers' order, as the recorder ranks them; K = `magna_uav.recorder.DEFAULT_OBSTACLES`
   slots, NaN where fewer.
@@ -51,6 +57,8 @@ from magna_uav.world_view import AgentState, WorldView
 from mlr.steps import PicklerError, UavSteps
 
 _USE_CSV = "use the CSVs (source csv)"
+NOT_IN_VIEW = -1  # a used-message stamp: the step had nothing of that UAV
+NO_VELOCITY_YET = -2  # a used-message stamp: the step had the UAV's pose, but no velocity yet
 
 
 class _Series:
@@ -73,12 +81,35 @@ class _Series:
         self.values = np.asarray(self._values, dtype=float).reshape(-1, 3)[order]
 
     def at(self, stamps: np.ndarray) -> np.ndarray:
-        """(n, 3) the newest value stamped at or before each of `stamps`; NaN before the first."""
+        """(n, 3) the newest value stamped at or before each of `stamps`; NaN before the first and for
+        NOT_IN_VIEW, zero for NO_VELOCITY_YET."""
         k = np.searchsorted(self.stamps, stamps, side="right") - 1
         out = np.full((len(stamps), 3), np.nan)
-        known = k >= 0
+        known = (k >= 0) & (stamps >= 0)
         out[known] = self.values[k[known]]
+        out[stamps == NO_VELOCITY_YET] = 0.0
         return out
+
+
+def _ns(time) -> int:
+    return int(time.sec) * 10**9 + int(time.nanosec)
+
+
+def _used_stamps(msgs: list, stamps: np.ndarray, uav: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per step, the stamps of `uav`'s pose and velocity messages the step used (module docstring)."""
+    pose = np.full(len(msgs), NOT_IN_VIEW, dtype=np.int64)
+    velocity = pose.copy()
+    for i, msg in enumerate(msgs):
+        named = getattr(msg, "uav_ids", None)
+        if named is None:  # a bag made before the steps named their messages: the step's own stamp
+            pose[i] = velocity[i] = stamps[i]
+            continue
+        for k, j in enumerate(named):
+            if int(j) == uav:
+                pose[i] = _ns(msg.pose_stamps[k])
+                velocity[i] = _ns(msg.velocity_stamps[k]) or NO_VELOCITY_YET
+                break
+    return pose, velocity
 
 
 def _xyz(v) -> tuple[float, float, float]:
@@ -158,14 +189,15 @@ def _uav_steps(bag: Path, uav: int, max_speed: float, messages: list, poses, vel
     numbers = np.array([m.role_number for m in msgs], dtype=np.int64)
     empty = _Series()
     empty.freeze()
-    position = poses.get(uav, empty).at(stamps)
+    used = {j: _used_stamps(msgs, stamps, j) for j in ids}
+    position = poses.get(uav, empty).at(used[uav][0])
     others = {}
     for j in ids:
         if j == uav:
             continue
-        other_position = poses.get(j, empty).at(stamps)
+        other_position = poses.get(j, empty).at(used[j][0])
         distance = np.linalg.norm(other_position - position, axis=1)
-        others[j] = (other_position, velocities.get(j, empty).at(stamps), distance - radii[uav] - radii[j])
+        others[j] = (other_position, velocities.get(j, empty).at(used[j][1]), distance - radii[uav] - radii[j])
     obstacle_pos, obstacle_gap = _ranked_obstacles(stamps, position, radii[uav], markers)
     return UavSteps(
         source=bag,
@@ -175,7 +207,7 @@ def _uav_steps(bag: Path, uav: int, max_speed: float, messages: list, poses, vel
         role=np.array([m.role for m in msgs], dtype=object),
         algorithm=np.array([m.algorithm for m in msgs], dtype=object),
         position=position,
-        velocity=velocities.get(uav, empty).at(stamps),
+        velocity=velocities.get(uav, empty).at(used[uav][1]),
         goal=np.array([_xyz(m.goal) for m in msgs], dtype=float).reshape(n, 3),
         goal_vel=np.array([_xyz(m.goal_velocity) for m in msgs], dtype=float).reshape(n, 3),
         goal_dist=np.array([m.goal_distance for m in msgs], dtype=float),
