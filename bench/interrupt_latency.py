@@ -19,10 +19,19 @@ import tempfile
 import time
 from pathlib import Path
 
+if __name__ == "__main__":  # `python bench/interrupt_latency.py` from any Python: in the workspace (bench/README.md)
+    sys.path.append(str(Path(__file__).resolve().parents[1] / "src" / "magna_common" / "src"))
+    from magna_common.workspace_bootstrap import run_script_in_workspace
+
+    run_script_in_workspace(__file__, modules=("magna_common",))
+
 ROOT = Path(__file__).resolve().parent.parent
-WORLD = ROOT / "worlds" / "Gym" / "Four_Cylinders.json"
-MISSION = ROOT / "tests" / "missions" / "Test" / "1UAV_Short_Hop.json"
-PHASE_FILE = {"launch": "logs/launch.log", "flight": "mission.json", "finishing": "result.json"}
+sys.path.insert(0, str(ROOT))
+
+# the fault tests' mission, world and phases: what they interrupt is what this measures
+from magna_common.storage_tree import simulation_dir  # noqa: E402
+from tests.faults.batch_runs import PHASE_FILES, WORLD, dataset_dir  # noqa: E402
+from tests.faults.batch_runs import SHORT_MISSION as MISSION  # noqa: E402
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -42,8 +51,8 @@ def interrupt_once(phase: str, folder: Path) -> float:
         run = subprocess.Popen(command, stdout=output, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                                start_new_session=True)
     try:
-        marker = PHASE_FILE[phase]
-        while not any(data_root.glob(f"Simulations/*/*/*/*/*/dataset_*/simulation_1/{marker}")):
+        marker = simulation_dir(dataset_dir(data_root), 1) / PHASE_FILES[phase]
+        while not marker.is_file():
             if run.poll() is not None:
                 raise RuntimeError(f"magna run ended before the {phase} phase: see {folder / 'output.txt'}")
             time.sleep(0.02)
@@ -61,9 +70,9 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     phases = [p.strip() for p in args.phases.split(",") if p.strip()]
-    unknown = [p for p in phases if p not in PHASE_FILE]
+    unknown = [p for p in phases if p not in PHASE_FILES]
     if unknown or args.repeat < 1:
-        parser.error(f"--phases takes {', '.join(PHASE_FILE)}; --repeat at least 1 (got {args.phases!r}, "
+        parser.error(f"--phases takes {', '.join(PHASE_FILES)}; --repeat at least 1 (got {args.phases!r}, "
                      f"{args.repeat})")
     print(f"SIGINT to `magna run` of {MISSION.name}, {args.repeat} per phase: seconds until it exited")
     print(f"{'phase':<10} {'median':>7} {'worst':>7}  each")

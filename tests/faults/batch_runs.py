@@ -19,12 +19,24 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from magna_common.processes import tagged_processes
-from magna_common.storage_tree import SUMMARY_FILE, existing_simulations, simulation_dir
+from magna_common.storage_tree import (
+    LOGS_DIR,
+    MISSION_FILE,
+    RESULT_FILE,
+    SUMMARY_FILE,
+    existing_simulations,
+    simulation_dir,
+)
 from tests.support import ROOT
 
 WORLD = ROOT / "worlds" / "Gym" / "Four_Cylinders.json"
 SHORT_MISSION = ROOT / "tests" / "missions" / "Test" / "1UAV_Short_Hop.json"
 FAULT_TOKEN_ENV = "MAGNA_FAULT_TEST_TOKEN"
+# The phases of a simulation a batch can be interrupted in, each with the file in the simulation's folder that
+# shows it has begun: launch (the supervisor started roslaunch), flight (the ground station copied the
+# mission), finishing (result.json written, the launch coming down). The signal tests and
+# bench/interrupt_latency.py signal a batch there.
+PHASE_FILES = {"launch": Path(LOGS_DIR) / "launch.log", "flight": Path(MISSION_FILE), "finishing": Path(RESULT_FILE)}
 
 
 def dataset_dir(data_root: Path) -> Path:

@@ -25,6 +25,7 @@ import pytest
 
 from magna_common.storage_tree import existing_simulations, simulation_dir
 from tests.faults.batch_runs import (
+    PHASE_FILES,
     MagnaRun,
     append_one_simulation,
     check_dataset,
@@ -68,27 +69,18 @@ def interrupt_plan(rng: random.Random) -> list[Point]:
 
 def phase_condition(dataset: Path, m: int, phase: str):
     """The observable condition that simulation m has entered `phase`."""
-    folder = simulation_dir(dataset, m)
-    return {
-        "launch": lambda: (folder / "logs" / "launch.log").is_file(),
-        "flight": lambda: (folder / "mission.json").is_file(),
-        "finishing": lambda: (folder / "result.json").is_file(),
-        "between": lambda: m in summary_ids(dataset),
-    }[phase]
+    if phase == "between":
+        return lambda: m in summary_ids(dataset)
+    marker = simulation_dir(dataset, m) / PHASE_FILES[phase]
+    return marker.is_file
 
 
 def observed_phase(dataset: Path, m: int) -> str:
     """Where simulation m is now, read from its files (the same conditions, latest first)."""
-    folder = simulation_dir(dataset, m)
     if m in summary_ids(dataset):
         return "between"
-    if (folder / "result.json").is_file():
-        return "finishing"
-    if (folder / "mission.json").is_file():
-        return "flight"
-    if (folder / "logs" / "launch.log").is_file():
-        return "launch"
-    return "starting"
+    folder = simulation_dir(dataset, m)
+    return next((phase for phase, marker in reversed(PHASE_FILES.items()) if (folder / marker).is_file()), "starting")
 
 
 def test_the_plan_covers_both_signals_and_every_phase():
