@@ -227,20 +227,20 @@ class UalBackend:
         self._arming_since = now
         self._arm_in_background("ual_mavlink arming", self._armed_on_the_ground)
 
-    def _armed_on_the_ground(self, err: CommandFailed | CommandRefused | None) -> None:
+    def _armed_on_the_ground(self, err: Exception | None) -> None:
         """The end of an arming `_keep_armed` began; a failed one is tried again arm_retry s later."""
         if err is not None:
             self.log.warning(f"UAV {self.settings.uav_id}: arming: {err}; trying again in "
                              f"{self.settings.arm_retry:g} s")
         self._arming_since = None
 
-    def _arm_in_background(self, name: str, then: Callable[[CommandFailed | CommandRefused | None], None]) -> None:
+    def _arm_in_background(self, name: str, then: Callable[[Exception | None], None]) -> None:
         """Arm on a thread of its own, as the ticks must go on meanwhile (the set-points PX4 wants before OFFBOARD,
         the telemetry that shows it armed); then `then(None)`, or `then(err)` with why it did not arm."""
         def arm() -> None:
             try:
                 self._arm()
-            except (CommandFailed, CommandRefused) as err:
+            except Exception as err:  # CommandFailed, CommandRefused, or a bug: said either way, never a dead thread
                 then(err)
                 return
             then(None)
@@ -303,7 +303,7 @@ class UalBackend:
         self.log.warning(f"{uav}: disarmed on the ground as the take-off began (the autopilot's pre-flight "
                          f"auto-disarm?): arming it again")
 
-        def climb_once_armed(err: CommandFailed | CommandRefused | None) -> None:
+        def climb_once_armed(err: Exception | None) -> None:
             with self._lock:
                 if err is not None:
                     self._fail(op, f"take_off interrupted: {uav} was disarmed on the ground and did not arm "
