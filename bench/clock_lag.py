@@ -47,12 +47,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 def settle_margin() -> float:
     """CAUGHT_UP of ual_api_rostest.py, read from the file the rostest runs."""
-    import importlib.util
+    if str(ROOT) not in sys.path:
+        sys.path.insert(0, str(ROOT))
+    from tests.support import load_module
 
-    spec = importlib.util.spec_from_file_location("ual_api_cases", UAL_API_CASES)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return float(module.CAUGHT_UP)
+    return float(load_module(UAL_API_CASES, "ual_api_cases").CAUGHT_UP)
 
 
 def percentile(values: list[float], q: float) -> float:

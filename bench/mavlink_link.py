@@ -128,13 +128,11 @@ def end_burners(burners: list[subprocess.Popen]) -> None:
 
 def load_bench(name: str):
     """Another bench script as a module (its measuring parts), as tests/test_bench_cli.py loads them."""
-    import importlib.util
+    if str(ROOT) not in sys.path:
+        sys.path.insert(0, str(ROOT))
+    from tests.support import load_module
 
-    spec = importlib.util.spec_from_file_location(f"bench_{name}", ROOT / "bench" / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
+    return load_module(ROOT / "bench" / f"{name}.py", f"bench_{name}")
 
 
 class Uav:
