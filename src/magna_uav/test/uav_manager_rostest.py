@@ -279,6 +279,15 @@ class UavManagerFlights(unittest.TestCase):
         # Both now fly back to the poses they held when the contact stopped them. Started before they
         # are back, the move below met the contact again as a new one (seen in CI, under load).
         wait_until_still([self.uav1, self.uav2])
+        # Those two poses come from two managers' views of a 4 m/s closing, a step apart under load: they
+        # may be just out of contact (0.63 m seen). So UAV 2 backs off and flies through UAV 1 as it hovers:
+        # the contact stops it where its own view was in contact with the UAV 1 that stays put.
+        p1 = self.uav1.where()
+        goto(self.uav2, p1[0] + 2.0, p1[1], p1[2])
+        wait_until_still([self.uav1, self.uav2])
+        result = self.uav2.do("follow_path", path=[pose(p1[0] - 1.0, p1[1], p1[2])], dynamic="position")
+        self.assertEqual(result.outcome, "collision", result.message)
+        wait_until_still([self.uav1, self.uav2])
         self.assertLess(float(np.linalg.norm(self.uav1.where() - self.uav2.where())), SAFETY, "back in contact")
         # Still in contact: a role that starts so may separate them (only a new contact would end it).
         result = self.uav2.do("basic_move", move_type="translation", direction="up", value=3.0, dynamic="position")
