@@ -57,6 +57,8 @@ SIM_SPAWN_MODEL = "/magna/sim/spawn_model"
 SIM_DELETE_MODEL = "/magna/sim/delete_model"
 SIM_PAUSE = "/magna/sim/pause"
 SIM_COLLISIONS = "/magna/sim/collisions"
+SIM_RESET = "/magna/sim/reset"
+SIM_SWARM_STATE = "/magna/sim/swarm_state"
 
 WORLD = "/magna/world"
 WORLD_MARKERS = "/magna/world/markers"
@@ -65,9 +67,11 @@ WORLD_DELETE = "/magna/world/delete"
 WORLD_GET_FSPSET = "/magna/world/get_fspset"
 WORLD_BOUNDARIES = "/magna/world/boundaries"
 WORLD_ORIGIN_GEO = "/magna/world/origin_geo"
+WORLD_RESET = "/magna/world/reset"
 
 ORCA_COMPUTE_VELOCITY = "/magna/orca3d/compute_velocity"
 ORCA_COMPUTE_VELOCITIES = "/magna/orca3d/compute_velocities"
+ORCA_COMPUTE_VELOCITY_MANY = "/magna/orca3d/compute_velocity_many"
 
 UTM_FLIGHT_PLANS = "/magna/utm/flight_plans"
 
