@@ -109,6 +109,8 @@ Private parameters (defaults):
   ~fleet_file ("")           the fleet file (YAML) of the mission's hil and real UAVs: for each, where its
                              autopilot is; the ground station starts one ual_mavlink bridge per UAV (see
                              magna_mavlink's README). Needed when the mission has hil or real UAVs.
+  ~teardown (true)           delete the UAVs and the world at the end; false when a batch's persistent
+                             stack resets the simulator and the world itself
 """
 
 SUCCESS_OUTCOMES = ("completed", "succeeded", "success", "mission_completed", "finished")
@@ -429,6 +431,8 @@ class GroundStation:
         if self.data_dir:
             self.data_dir.mkdir(parents=True, exist_ok=True)
         self.save_data = bool(rospy.get_param("~save_data", hyper.save_data))
+        # false when a persistent stack (the batch's) resets the simulator and the world after the mission
+        self.teardown = bool(rospy.get_param("~teardown", True))
         record = self.data_dir and rospy.get_param("~bag", hyper.save_bag)
         self.bag = (BagRecorder(self.data_dir / "simulation.bag", mission_topics(c.id for c in self.mission.agents))
                     if record else None)
@@ -627,9 +631,10 @@ class GroundStation:
             steps.append(("copying the mission", lambda: write_text_atomically(
                 self.data_dir / "mission.json", self.mission_file.read_text(), overwrite=True)))
         steps += [("stopping the UAV managers", services.stop_managers),
-                  ("stopping the MAVLink bridges", services.stop_bridges), ("deleting the UAVs", services.delete_uavs),
-                  ("deleting the world", services.delete_world), ("stopping the UTM", services.stop_utm),
-                  ("closing the bag", self._close_bag)]
+                  ("stopping the MAVLink bridges", services.stop_bridges)]
+        if self.teardown:  # a persistent stack resets the simulator and the world itself, all at once
+            steps += [("deleting the UAVs", services.delete_uavs), ("deleting the world", services.delete_world)]
+        steps += [("stopping the UTM", services.stop_utm), ("closing the bag", self._close_bag)]
         for what, step in steps:  # every step runs, and the Master hears of the end whatever fails
             try:
                 step()
