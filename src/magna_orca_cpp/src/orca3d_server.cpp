@@ -37,6 +37,7 @@ int main(int argc, char** argv)
 
   using One = magna_msgs::OrcaComputeVelocity;
   using Batch = magna_msgs::OrcaComputeVelocities;
+  using Many = magna_msgs::OrcaComputeVelocityMany;
   const ros::ServiceServer one = nh.advertiseService<One::Request, One::Response>(
       service::kComputeVelocityService, [&settings](One::Request& req, One::Response& res) {
         service::computeVelocity(req, res, settings);
@@ -47,9 +48,15 @@ int main(int argc, char** argv)
         service::computeVelocities(req, res, settings);
         return true;
       });
+  const ros::ServiceServer many = nh.advertiseService<Many::Request, Many::Response>(
+      service::kComputeVelocityManyService, [&settings](Many::Request& req, Many::Response& res) {
+        service::computeVelocityMany(req, res, settings);
+        return true;
+      });
 
   const magna_orca::Params& p = settings.params;
-  ROS_INFO_STREAM("ORCA-3D serving " << one.getService() << " and " << batch.getService()
+  ROS_INFO_STREAM("ORCA-3D serving " << one.getService() << ", " << batch.getService() << " and "
+                                     << many.getService()
                                      << " (N_neighbors_aware " << p.max_neighbors << ", timeStep " << p.time_step
                                      << ", neighborDist " << p.neighbor_dist << ", timeHorizon " << p.time_horizon
                                      << ", agent_radius " << p.agent_radius << ", maxSpeed " << p.max_speed

@@ -34,7 +34,7 @@ const ParameterDoc kParameters[] = {
   { "agent_radius", "double", "m, radius of agents that give 0" },
   { "maxSpeed", "double", "m/s, speed limit of agents that give 0" },
   { "max_neighbors", "int", "cap on N_neighbors_aware and on the neighbours of one request" },
-  { "max_agents", "int", "cap on the agents of one batch" },
+  { "max_agents", "int", "cap on the agents of one batch and on the problems of one many-call" },
 };
 
 std::string defaultOf(const std::string& name, const Settings& defaults)
@@ -108,12 +108,12 @@ std::string readNumber(const ros::NodeHandle& nh, const std::string& name, doubl
 }
 
 // `count` entries of `field` against the server's cap `limit` named `setting`.
-std::string checkCount(std::size_t count, std::size_t limit, const char* field, const char* setting,
+std::string checkCount(std::size_t count, std::size_t limit, const std::string& field, const char* setting,
                        const char* per)
 {
   if (count <= limit)
     return "";
-  return std::string(field) + " has " + std::to_string(count) + " entries: this server takes at most " +
+  return field + " has " + std::to_string(count) + " entries: this server takes at most " +
          std::to_string(limit) + " " + per + " (" + setting + "); send fewer or raise " + setting;
 }
 
@@ -133,14 +133,58 @@ std::string firstRepeatedId(const std::vector<std::uint32_t>& ids, NameOf name_o
   return "";
 }
 
-std::string indexed(const char* name, std::size_t i)
+std::string indexed(const std::string& name, std::size_t i)
 {
-  return std::string(name) + "[" + std::to_string(i) + "]";
+  return name + "[" + std::to_string(i) + "]";
 }
 
 const char* source(bool from_server)
 {
   return from_server ? "server parameters" : "request parameters";
+}
+
+// One agent against its neighbours, checked and solved: the code path of both
+// /compute_velocity and each problem of /compute_velocity_many, so their answers are the
+// same bit for bit. Fields are named under `where` ("" for the one-agent request,
+// "problems[3]." in a many-call). Returns "" with `solution` set, or the refusal.
+std::string solveProblem(const magna_msgs::OrcaAgent& agent, const std::vector<magna_msgs::OrcaAgent>& neighbors,
+                         const magna_msgs::OrcaParams& params_msg, const Settings& settings, const std::string& where,
+                         Workspace& work, std::vector<Agent>& others, Solution& solution, bool& from_server)
+{
+  std::string error = checkCount(neighbors.size(), settings.max_neighbors, where + "neighbors", "~max_neighbors",
+                                 where.empty() ? "per request" : "per problem");
+  Params params;
+  if (error.empty())
+    error = resolveParams(params_msg, settings, params, from_server, where + "params");
+  Agent self;
+  if (error.empty())
+  {
+    self = toAgent(agent);
+    error = checkAgent(self, params, where + "agent");
+  }
+  others.clear();
+  for (std::size_t i = 0; error.empty() && i < neighbors.size(); ++i)
+  {
+    others.push_back(toAgent(neighbors[i]));
+    error = checkAgent(others.back(), params, indexed(where + "neighbors", i));
+  }
+  if (error.empty())
+  {
+    std::vector<std::uint32_t> ids{ agent.id };
+    for (const magna_msgs::OrcaAgent& neighbor : neighbors)
+      ids.push_back(neighbor.id);
+    error = firstRepeatedId(ids, [&where](std::size_t i) {
+      return i == 0 ? where + "agent" : indexed(where + "neighbors", i - 1);
+    });
+  }
+  if (!error.empty())
+    return error;
+
+  solution = newVelocity(self, others, params, work);
+  if (!solution.velocity.allFinite())
+    return "internal error: the solver gave a non-finite velocity for " +
+           (where.empty() ? "" : where.substr(0, where.size() - 1) + ", ") + "agent " + std::to_string(agent.id) + "; please report this request";
+  return "";
 }
 }  // namespace
 
@@ -154,8 +198,12 @@ std::string usage(const std::string& program)
        << "    magna_msgs/OrcaComputeVelocity: one agent and its neighbours -> its new velocity\n"
        << "  " << kComputeVelocitiesService
        << "  magna_msgs/OrcaComputeVelocities: every agent against the others -> one velocity each, same order\n"
-       << "Both names can be remapped. A request whose params block is all zero is solved with the\n"
-       << "parameters below; otherwise with its own, checked against ~max_neighbors.\n\n"
+       << "  " << kComputeVelocityManyService
+       << "  magna_msgs/OrcaComputeVelocityMany: independent one-agent problems, each solved as\n"
+       << "      " << kComputeVelocityService << " would solve it -> one velocity each, same order\n"
+       << "Every name can be remapped. A request whose params block is all zero is solved with the\n"
+       << "parameters below; otherwise with its own, checked against ~max_neighbors (in a many-call,\n"
+       << "each problem's block on its own).\n\n"
        << "Private parameters (type, default, meaning):\n";
   for (const ParameterDoc& parameter : kParameters)
     text << "  ~" << std::left << std::setw(19) << parameter.name << std::setw(8) << parameter.type << std::setw(11)
@@ -262,7 +310,7 @@ bool isUnset(const magna_msgs::OrcaParams& msg)
 }
 
 std::string resolveParams(const magna_msgs::OrcaParams& msg, const Settings& settings, Params& params,
-                          bool& from_server)
+                          bool& from_server, const std::string& where)
 {
   from_server = isUnset(msg);
   if (from_server)
@@ -271,7 +319,7 @@ std::string resolveParams(const magna_msgs::OrcaParams& msg, const Settings& set
     return "";
   }
   params = toParams(msg);
-  return magna_orca::checkParams(params, settings.max_neighbors, "params");
+  return magna_orca::checkParams(params, settings.max_neighbors, where);
 }
 
 void computeVelocity(const magna_msgs::OrcaComputeVelocity::Request& req,
@@ -280,44 +328,15 @@ void computeVelocity(const magna_msgs::OrcaComputeVelocity::Request& req,
   res = magna_msgs::OrcaComputeVelocity::Response();
   try
   {
-    std::string error = checkCount(req.neighbors.size(), settings.max_neighbors, "neighbors", "~max_neighbors",
-                                   "per request");
-    Params params;
-    bool from_server = false;
-    if (error.empty())
-      error = resolveParams(req.params, settings, params, from_server);
-    Agent self;
-    if (error.empty())
-    {
-      self = toAgent(req.agent);
-      error = checkAgent(self, params, "agent");
-    }
+    Workspace work;
     std::vector<Agent> others;
-    others.reserve(req.neighbors.size());
-    for (std::size_t i = 0; error.empty() && i < req.neighbors.size(); ++i)
-    {
-      others.push_back(toAgent(req.neighbors[i]));
-      error = checkAgent(others.back(), params, indexed("neighbors", i));
-    }
-    if (error.empty())
-    {
-      std::vector<std::uint32_t> ids{ req.agent.id };
-      for (const magna_msgs::OrcaAgent& neighbor : req.neighbors)
-        ids.push_back(neighbor.id);
-      error = firstRepeatedId(
-          ids, [](std::size_t i) { return i == 0 ? std::string("agent") : indexed("neighbors", i - 1); });
-    }
+    Solution solution;
+    bool from_server = false;
+    const std::string error =
+        solveProblem(req.agent, req.neighbors, req.params, settings, "", work, others, solution, from_server);
     if (!error.empty())
     {
       res.message = error;
-      return;
-    }
-
-    const Solution solution = newVelocity(self, others, params);
-    if (!solution.velocity.allFinite())
-    {
-      res.message = "internal error: the solver gave a non-finite velocity for agent " +
-                    std::to_string(req.agent.id) + "; please report this request";
       return;
     }
     res.velocity = toMsg(solution.velocity);
@@ -417,6 +436,62 @@ void computeVelocities(const magna_msgs::OrcaComputeVelocities::Request& req,
   catch (...)
   {
     res = magna_msgs::OrcaComputeVelocities::Response();
+    res.message = "internal error: an unknown exception";
+  }
+}
+
+void computeVelocityMany(const magna_msgs::OrcaComputeVelocityMany::Request& req,
+                         magna_msgs::OrcaComputeVelocityMany::Response& res, const Settings& settings)
+{
+  res = magna_msgs::OrcaComputeVelocityMany::Response();
+  try
+  {
+    const std::string error =
+        checkCount(req.problems.size(), settings.max_agents, "problems", "~max_agents", "per call");
+    if (!error.empty())
+    {
+      res.message = error;
+      return;
+    }
+    Workspace work;  // one for every problem: the solver clears what it reuses
+    std::vector<Agent> others;
+    std::size_t infeasible = 0;
+    res.velocities.reserve(req.problems.size());
+    res.feasible.reserve(req.problems.size());
+    for (std::size_t i = 0; i < req.problems.size(); ++i)
+    {
+      const magna_msgs::OrcaProblem& problem = req.problems[i];
+      Solution solution;
+      bool from_server = false;
+      const std::string refusal = solveProblem(problem.agent, problem.neighbors, problem.params, settings,
+                                               indexed("problems", i) + ".", work, others, solution, from_server);
+      if (!refusal.empty())  // one bad problem refuses the call: no partial answers
+      {
+        res = magna_msgs::OrcaComputeVelocityMany::Response();
+        res.message = refusal;
+        return;
+      }
+      res.velocities.push_back(toMsg(solution.velocity));
+      res.feasible.push_back(solution.feasible);
+      infeasible += solution.feasible ? 0 : 1;
+    }
+    res.success = true;
+    std::ostringstream message;
+    message << "ok: " << req.problems.size() << (req.problems.size() == 1 ? " problem, " : " problems, ");
+    if (infeasible == 0)
+      message << "all feasible";
+    else
+      message << infeasible << " infeasible (least-violating velocities given)";
+    res.message = message.str();
+  }
+  catch (const std::exception& e)
+  {
+    res = magna_msgs::OrcaComputeVelocityMany::Response();
+    res.message = std::string("internal error: ") + e.what();
+  }
+  catch (...)
+  {
+    res = magna_msgs::OrcaComputeVelocityMany::Response();
     res.message = "internal error: an unknown exception";
   }
 }
