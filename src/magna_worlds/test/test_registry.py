@@ -127,3 +127,24 @@ def test_record_is_json_and_holds_every_part(registry):
     frames = [f for g in delivery["geometries"] for s in g["pose_sets"] for f in s["frames"]]
     assert "GS_takeoff_pos_1_0_0" in frames
     assert {o["name"] for o in delivery["obstacles"]} >= {"O1_del_obs_0", "D1_rec_obs_0", "D2_rec_obs_0"}
+
+
+def test_a_reset_registry_flies_the_next_world_as_a_fresh_one():
+    """The world node's reset between a batch's simulations: parts, random poses and query draws start over."""
+    def fly(registry):
+        registry.add_file("gym", CORPUS_WORLDS / "Gym" / "Empty_4_Cylinders.json")
+        drawn = [registry.resolve(["LateralAccissibleZones", g, "random", 2]).positions for g in ("X", "Y", "X")]
+        transforms = [(parent, child, frame.translation.tolist(), frame.quaternion().tolist())
+                      for parent, child, frame in registry.static_transforms()]
+        return registry.record(), np.concatenate(drawn), transforms
+
+    reused = WorldRegistry(seed=1, search_path=[])
+    fly(reused)
+    reused.add_inline("pad", json.dumps(INLINE))  # a part the next simulation does not have
+    reused.reset(7)
+    assert reused.parts == {} and reused.static_transforms() == [] and reused.record() == {"seed": 7, "parts": {}}
+    record, drawn, transforms = fly(reused)
+    fresh_record, fresh_drawn, fresh_transforms = fly(WorldRegistry(seed=7, search_path=[]))
+    assert record == fresh_record and transforms == fresh_transforms
+    np.testing.assert_array_equal(drawn, fresh_drawn)
+    assert not np.array_equal(drawn, fly(WorldRegistry(seed=1, search_path=[]))[1])  # the seed shows in the draws

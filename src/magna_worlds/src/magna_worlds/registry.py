@@ -19,8 +19,13 @@ from magna_worlds.transforms import Frame
 
 class WorldRegistry:
     def __init__(self, seed: int = 0, search_path: list[Path] | None = None):
-        self.seed = seed
         self.search_path = world_folders() if search_path is None else list(search_path)
+        self.reset(seed)
+
+    def reset(self, seed: int) -> None:
+        """Forget every part and query, as a new registry with `seed` (and this search path) would be: the random
+        poses and obstacles of the next parts, and the draws of random queries, repeat those of a fresh start."""
+        self.seed = seed
         self.parts: dict[str, ResolvedWorld] = {}
         self.queries = PoseQueries(seed)
         self.query_frames: dict[str, list[tuple[str, str, Frame]]] = {}  # part id -> frames made by queries

@@ -20,6 +20,8 @@ from magna_msgs.srv import (
     DeleteWorldPartResponse,
     GetFreeSpacePoseSet,
     GetFreeSpacePoseSetResponse,
+    ResetWorld,
+    ResetWorldResponse,
     SpawnModel,
     SpawnModelRequest,
 )
@@ -47,6 +49,12 @@ Services (magna_msgs):
                             world/subworld from /magna/hyperparameters
   /magna/world/get_fspset   GetFreeSpacePoseSet: [volume, geometry, kind, arg] -> map poses
   /magna/world/delete       DeleteWorldPart: removes a part, its frames, markers and obstacles
+  /magna/world/reset        ResetWorld: [seed, record] -> the node as if started afresh with ~seed:=seed
+                            and ~record:=record ("" = no world.json): no parts (but the ~world_file
+                            or ~world start part, loaded again), /magna/world deleted, tf_static
+                            latched empty and the markers a lone DELETEALL. Obstacles it spawned are
+                            forgotten, not deleted: the simulator's reset (/magna/sim/reset) removes them.
+                            The next world.json equals a cold start's for the same seed and parts.
 
 Private parameters (defaults):
   ~world_file ("")          a world file loaded at start as part ~part_id
@@ -60,17 +68,13 @@ Private parameters (defaults):
 
 Parameters set: /magna/world/origin_geo [lat, lon, alt] and /magna/world/boundaries
 [[xmin, xmax], [ymin, ymax], [zmin, zmax]] of the last part that has them. The node owns
-/magna/world: it deletes what an earlier world node left there when it starts.
+/magna/world: it deletes what an earlier world node left there when it starts (and on a reset).
 
 Example: rosrun magna_worlds world _world:=Gym _subworld:=Four_Cylinders _seed:=1
 """
 
 class WorldNode:
     def __init__(self):
-        # An earlier run's world (on the same master) must not stand in for this one's: a default
-        # box of ours would never replace its boundaries.
-        if rospy.has_param(names.WORLD):  # what the node tells others: origin_geo, boundaries
-            rospy.delete_param(names.WORLD)
         hyper = Hyperparameters.from_param(rospy.get_param(names.HYPERPARAMETERS, {}))
         seed = int(rospy.get_param("~seed", hyper.seed or 0))
         extra = [Path(p) for p in rospy.get_param("~worlds_path", [])]
@@ -78,26 +82,40 @@ class WorldNode:
         self.registry.search_path = extra + self.registry.search_path
         self.spawn_obstacles = bool(rospy.get_param("~spawn_obstacles", True))
         self.sim_wait = float(rospy.get_param("~sim_wait", 2.0))
-        self.record_path = rospy.get_param("~record", "")
+        self.start_file = rospy.get_param("~world_file", "")
+        self.start_world, self.start_sub = rospy.get_param("~world", ""), rospy.get_param("~subworld", "")
+        self.start_part_id = rospy.get_param("~part_id", "main")
+        self.record_path = ""
         self.flown: dict[str, dict] = {}  # every part recorded this run, by id
         self.lock = threading.Lock()
         self.spawned: dict[str, list[str]] = {}  # part id -> obstacle models in the simulator
         self.tf_pub = rospy.Publisher("/tf_static", TFMessage, queue_size=1, latch=True)
         self.marker_pub = rospy.Publisher(names.WORLD_MARKERS, MarkerArray, queue_size=1, latch=True)
-        self._publish()
-        start_file = rospy.get_param("~world_file", "")
-        start_world, start_sub = rospy.get_param("~world", ""), rospy.get_param("~subworld", "")
-        part_id = rospy.get_param("~part_id", "main")
-        if start_file or start_world:
-            with self.lock:
-                if start_file:
-                    self.registry.add_file(part_id, start_file)
-                else:
-                    self.registry.add_named(part_id, start_world, start_sub)
-                self._after_add(part_id)
+        with self.lock:
+            self._start(seed, rospy.get_param("~record", ""))
         rospy.Service(names.WORLD_ADD, AddWorldPart, self.handle_add)
         rospy.Service(names.WORLD_GET_FSPSET, GetFreeSpacePoseSet, self.handle_get)
         rospy.Service(names.WORLD_DELETE, DeleteWorldPart, self.handle_delete)
+        rospy.Service(names.WORLD_RESET, ResetWorld, self.handle_reset)
+
+    def _start(self, seed: int, record_path: str) -> None:
+        """The state of a node just started with this seed and record: at start and on every reset (the lock held)."""
+        # An earlier run's world (on the same master) must not stand in for this one's: a default
+        # box of ours would never replace its boundaries.
+        if rospy.has_param(names.WORLD):  # what the node tells others: origin_geo, boundaries
+            rospy.delete_param(names.WORLD)
+        self.registry.reset(seed)
+        self.record_path = record_path
+        self.flown = {}
+        # The simulator's reset removes the models; a fresh node would not know an earlier node's either.
+        self.spawned = {}
+        self._publish()  # no frames, and a lone DELETEALL marker
+        if self.start_file:
+            self.registry.add_file(self.start_part_id, self.start_file)
+            self._after_add(self.start_part_id)
+        elif self.start_world:
+            self.registry.add_named(self.start_part_id, self.start_world, self.start_sub)
+            self._after_add(self.start_part_id)
 
     # --- services ----------------------------------------------------------------------------------------------
 
@@ -144,6 +162,18 @@ class WorldNode:
             self._publish()
             self._write_record()
         return DeleteWorldPartResponse(True, f"deleted part {req.id!r} and {removed} obstacle(s) from the simulator")
+
+    def handle_reset(self, req) -> ResetWorldResponse:
+        with self.lock:
+            try:
+                self._start(int(req.seed), req.record)
+            except WorldError as err:
+                return ResetWorldResponse(False, f"reset with seed {req.seed}: the start part failed: {err}")
+            # What a node started with these would show: `rosparam get` tells the seed the world runs with.
+            rospy.set_param("~seed", int(req.seed))
+            rospy.set_param("~record", req.record)
+        where = f"recorded to {req.record}" if req.record else "not recorded"
+        return ResetWorldResponse(True, f"reset: seed {req.seed}, {len(self.registry.parts)} part(s), {where}")
 
     # --- effects -----------------------------------------------------------------------------------------------
 
