@@ -53,7 +53,8 @@ Services (magna_msgs):
                             and ~record:=record ("" = no world.json): no parts (but the ~world_file
                             or ~world start part, loaded again), /magna/world deleted, tf_static
                             latched empty and the markers a lone DELETEALL. Obstacles it spawned are
-                            forgotten, not deleted: the simulator's reset (/magna/sim/reset) removes them.
+                            forgotten, not deleted: the simulator's reset (/magna/sim/reset) removes them,
+                            so reset the simulator first (a start part's obstacles are spawned again).
                             The next world.json equals a cold start's for the same seed and parts.
 
 Private parameters (defaults):
@@ -169,9 +170,6 @@ class WorldNode:
                 self._start(int(req.seed), req.record)
             except WorldError as err:
                 return ResetWorldResponse(False, f"reset with seed {req.seed}: the start part failed: {err}")
-            # What a node started with these would show: `rosparam get` tells the seed the world runs with.
-            rospy.set_param("~seed", int(req.seed))
-            rospy.set_param("~record", req.record)
         where = f"recorded to {req.record}" if req.record else "not recorded"
         return ResetWorldResponse(True, f"reset: seed {req.seed}, {len(self.registry.parts)} part(s), {where}")
 
