@@ -129,7 +129,8 @@ class SupervisorCore:
     def __init__(self, command: Sequence[str], result_path: Path, log_path: Path, data_dir: Path | None = None,
                  time_limit: float | None = None, stop_grace: float = 15.0, settle: float = 5.0,
                  shutdown_timeout: float = 10.0, known: SimulationResult | None = None, token: str | None = None,
-                 stop_ground_station: Callable[[], bool] | None = None, poll: float = 0.05):
+                 stop_ground_station: Callable[[], bool] | None = None, poll: float = 0.05,
+                 env: dict | None = None, deaths: RequiredDeathWatch | None = None):
         self.command = list(command)
         self.result_path = Path(result_path)
         self.log_path = Path(log_path)
@@ -150,7 +151,9 @@ class SupervisorCore:
         self._started: float | None = None
         self._started_at = _now()
         self.launch: subprocess.Popen | None = None
-        self._deaths = RequiredDeathWatch(self.log_path)
+        self.env = env  # the command's environment (None: ours)
+        # where a required node's death is said: the launch's own log, or a persistent stack's
+        self._deaths = deaths if deaths is not None else RequiredDeathWatch(self.log_path)
         self._death: RequiredDeath | None = None  # a required node's death, noticed before any report
         self._death_noticed: dict = {}  # when: "noticed_at" (UTC) and "noticed_after" (wall s from the start)
 
@@ -190,7 +193,8 @@ class SupervisorCore:
         try:
             with open(self.log_path, "ab") as log:
                 launch = self.launch = subprocess.Popen(self.command, stdout=log, stderr=subprocess.STDOUT,
-                                                        stdin=subprocess.DEVNULL, start_new_session=True)
+                                                        stdin=subprocess.DEVNULL, start_new_session=True,
+                                                        env=self.env)
         except OSError as err:
             message = f"cannot start {self.command[0]!r}: {err.strerror or err}; check the launch command"
             result = self._result(START_FAILED, None, [], False, False, message=message)
