@@ -1,4 +1,5 @@
 """UAV managers' entry point: the C++ service when it is up, the numpy reference when it is not."""
+import dataclasses
 import subprocess
 
 import numpy as np
@@ -13,21 +14,22 @@ from tests.support import wait_until
 pytestmark = pytest.mark.ros
 
 # Private names, so this test's server cannot meet another test's.
-ONE, BATCH = "/orca_client_test/one", "/orca_client_test/batch"
+ONE, BATCH, MANY = "/orca_client_test/one", "/orca_client_test/batch", "/orca_client_test/many"
 
 
 @pytest.fixture
 def client(rospy_node):
     from magna_orca_cpp.service_client import OrcaServiceClient
 
-    client = OrcaServiceClient(ONE, BATCH)
+    client = OrcaServiceClient(ONE, BATCH, MANY)
     yield client
     client.close()
 
 
 def start_server(master):
     return master.spawn(["rosrun", "magna_orca_cpp", "orca3d_server", f"/magna/orca3d/compute_velocity:={ONE}",
-                         f"/magna/orca3d/compute_velocities:={BATCH}", "__name:=orca_client_test_server"],
+                         f"/magna/orca3d/compute_velocities:={BATCH}", f"/magna/orca3d/compute_velocity_many:={MANY}",
+                         "__name:=orca_client_test_server"],
                         stdout=subprocess.DEVNULL)
 
 
@@ -45,6 +47,8 @@ def test_solver_falls_back_to_the_reference_and_switches_when_the_server_goes(ro
     for s in cases:
         np.testing.assert_allclose(absent.new_velocity(s.agent, s.neighbors, s.params).velocity,
                                    reference.new_velocity(s.agent, s.neighbors, s.params).velocity, atol=1e-12)
+    for got, s in zip(absent.new_velocity_many(cases), cases, strict=True):
+        assert got.velocity.tobytes() == reference.new_velocity(s.agent, s.neighbors, s.params).velocity.tobytes()
 
     server = start_server(ros_master)
     try:
@@ -60,10 +64,26 @@ def test_solver_falls_back_to_the_reference_and_switches_when_the_server_goes(ro
             np.testing.assert_allclose(got.velocity, want.velocity, atol=1e-9)
         with pytest.raises(OrcaInputError, match="params.time_horizon"):
             client.new_velocity(cases[0].agent, cases[0].neighbors, Params(time_horizon=-1.0))
+
+        # Many problems in one call: each answer is its one-agent call's, bit for bit
+        many = present.new_velocity_many(cases)
+        assert len(many) == len(cases)
+        for got, s in zip(many, cases, strict=True):
+            one = client.new_velocity(s.agent, s.neighbors, s.params)
+            assert got.velocity.tobytes() == one.velocity.tobytes() and got.feasible == one.feasible
+        assert client.new_velocity_many([]) == []
+        bad = list(cases[:5])
+        bad[3] = dataclasses.replace(bad[3], params=Params(time_horizon=0.0))
+        with pytest.raises(OrcaInputError, match=r"^problems\[3\]\.params\.time_horizon \(timeHorizon\) is 0"):
+            client.new_velocity_many(bad)
     finally:
         end(server)
     wait_until(lambda: server.poll() is not None, "the server to end")
 
+    for got, s in zip(present.new_velocity_many(cases[:3]), cases, strict=False):
+        assert got.velocity.tobytes() == reference.new_velocity(s.agent, s.neighbors, s.params).velocity.tobytes()
+    assert not present.using_service, "a vanished server switches the many-call to the reference too"
+    present.using_service = True
     s = cases[0]
     answer = present.new_velocity(s.agent, s.neighbors, s.params)
     assert not present.using_service, "a vanished server switches the solver to the reference"

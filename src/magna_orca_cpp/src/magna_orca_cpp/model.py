@@ -91,6 +91,18 @@ class Solution:
     feasible: bool  # False: no velocity met every half-space; the least violating one is given
 
 
+@dataclass
+class Problem:
+    """One agent's own one-shot problem: the agent, the agents it sees, its parameters.
+
+    Several go in one call to the many service (OrcaComputeVelocityMany), each solved as if alone.
+    """
+
+    agent: Agent
+    neighbors: Sequence[Agent]
+    params: Params
+
+
 def agent_rows(agents: Sequence[Agent]) -> np.ndarray:
     """(n, 12) rows in the C interface's layout."""
     if not agents:

@@ -11,14 +11,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from magna_orca_cpp.model import Agent, Params
+from magna_orca_cpp.model import Agent, Params, Problem
 
 
 @dataclass
-class Scenario:
-    agent: Agent
+class Scenario(Problem):
+    """A drawn problem (so a list of them can go to the many-call as it is)."""
+
     neighbors: list[Agent]
-    params: Params
 
 
 def random_agent(rng: np.random.Generator, centre: np.ndarray, spread: float, max_speed: float) -> Agent:

@@ -1,7 +1,10 @@
 """ORCA-3D through the orca3d_server services, with the numpy reference as the fallback.
 
 UAV managers call `OrcaSolver.new_velocity(...)`: the C++ service when it is up, the
-reference (same semantics, slower) when it is not. Needs rospy and magna_msgs.
+reference (same semantics, slower) when it is not. Managers sharing a process batch their
+problems through `OrcaSolver.new_velocity_many(...)`: one call to the many service, or the
+reference problem by problem; each answer is the one `new_velocity` gives for that problem.
+Needs rospy and magna_msgs.
 """
 from __future__ import annotations
 
@@ -10,17 +13,19 @@ from collections.abc import Sequence
 import numpy as np
 import rospy
 from geometry_msgs.msg import Point, Vector3
-from magna_msgs.msg import OrcaAgent, OrcaParams
+from magna_msgs.msg import OrcaAgent, OrcaParams, OrcaProblem
 from magna_msgs.srv import (
     OrcaComputeVelocities,
     OrcaComputeVelocitiesRequest,
     OrcaComputeVelocity,
+    OrcaComputeVelocityMany,
+    OrcaComputeVelocityManyRequest,
     OrcaComputeVelocityRequest,
 )
 
 from magna_common import ros_names as names
 from magna_orca_cpp import reference
-from magna_orca_cpp.model import Agent, Params, Solution
+from magna_orca_cpp.model import Agent, Params, Problem, Solution
 from magna_orca_cpp.validation import OrcaInputError
 
 
@@ -37,20 +42,29 @@ def params_to_msg(params: Params) -> OrcaParams:
                       agent_radius=params.agent_radius, max_speed=params.max_speed)
 
 
+def problem_to_msg(problem: Problem) -> OrcaProblem:
+    """Ids as `new_velocity` numbers them (the agent 0, its neighbours from 1), so both ask the same."""
+    return OrcaProblem(agent=agent_to_msg(problem.agent, 0),
+                       neighbors=[agent_to_msg(o, j + 1) for j, o in enumerate(problem.neighbors)],
+                       params=params_to_msg(problem.params))
+
+
 def _vector(msg: Vector3) -> np.ndarray:
     return np.array([msg.x, msg.y, msg.z])
 
 
 class OrcaServiceClient:
-    """The two services over persistent connections (reconnected when they drop)."""
+    """The three services over persistent connections (reconnected when they drop)."""
 
     def __init__(self, one_service: str = names.ORCA_COMPUTE_VELOCITY,
-                 batch_service: str = names.ORCA_COMPUTE_VELOCITIES):
-        self._names = {OrcaComputeVelocity: one_service, OrcaComputeVelocities: batch_service}
+                 batch_service: str = names.ORCA_COMPUTE_VELOCITIES,
+                 many_service: str = names.ORCA_COMPUTE_VELOCITY_MANY):
+        self._names = {OrcaComputeVelocity: one_service, OrcaComputeVelocities: batch_service,
+                       OrcaComputeVelocityMany: many_service}
         self._proxies: dict = {}
 
     def wait(self, timeout: float) -> bool:
-        """Whether both services answer within `timeout` seconds."""
+        """Whether every service answers within `timeout` seconds."""
         try:
             for name in self._names.values():
                 rospy.wait_for_service(name, timeout)
@@ -78,6 +92,16 @@ class OrcaServiceClient:
             params=params_to_msg(params))
         response = self._call(OrcaComputeVelocity, request)
         return Solution(_vector(response.velocity), response.feasible)
+
+    def new_velocity_many(self, problems: Sequence[Problem]) -> list[Solution]:
+        """Each problem solved as `new_velocity` would solve it alone, in one call; same order.
+
+        One refused problem refuses the call (OrcaInputError naming problems[i] and the field)."""
+        if not problems:
+            return []
+        request = OrcaComputeVelocityManyRequest(problems=[problem_to_msg(p) for p in problems])
+        response = self._call(OrcaComputeVelocityMany, request)
+        return [Solution(_vector(v), f) for v, f in zip(response.velocities, response.feasible, strict=True)]
 
     def new_velocities(self, agents: Sequence[Agent], params: Params) -> list[Solution]:
         request = OrcaComputeVelocitiesRequest(
@@ -111,3 +135,12 @@ class OrcaSolver:
             except rospy.ServiceException:
                 self.using_service = False  # the server went away: keep flying on the reference
         return reference.new_velocity(agent, others, params)
+
+    def new_velocity_many(self, problems: Sequence[Problem]) -> list[Solution]:
+        """`new_velocity` for each problem, in one service call; the reference problem by problem without it."""
+        if self.using_service:
+            try:
+                return self.client.new_velocity_many(problems)
+            except rospy.ServiceException:
+                self.using_service = False
+        return [reference.new_velocity(p.agent, p.neighbors, p.params) for p in problems]
