@@ -27,19 +27,23 @@ it is up, the numpy reference otherwise), or the reference alone when rospy or t
 messages cannot be imported. The first time a solve runs on the reference because the
 service is absent (the solver's `using_service` is False), one warning goes to the
 `magna_uav.nai` logger.
+
+Managers sharing a process may share an `OrcaBatcher` (orca_batch.py): the navigator then
+hands its problem, built exactly as above, to the batcher with the step's key, and gets the
+same answer from one call made for all of them.
 """
 from __future__ import annotations
 
 import dataclasses
 import logging
-from collections.abc import Sequence
+from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from magna_common import ros_names as names
 from magna_orca_cpp import reference
-from magna_orca_cpp.model import Agent, Params, Solution
+from magna_orca_cpp.model import Agent, Params, Problem, Solution
 from magna_uav.nai.inputs import Neighbors, select_neighbors
 from magna_uav.world_view import WorldView
 
@@ -53,6 +57,9 @@ class ReferenceSolver:
 
     def new_velocity(self, agent: Agent, others: Sequence[Agent], params: Params) -> Solution:
         return reference.new_velocity(agent, others, params)
+
+    def new_velocity_many(self, problems: Sequence[Problem]) -> list[Solution]:
+        return [reference.new_velocity(p.agent, p.neighbors, p.params) for p in problems]
 
 
 def default_solver():
@@ -87,14 +94,28 @@ class OrcaResult:
 
 
 class OrcaNavigator:
-    """One UAV's ORCA-3D step: select neighbours, build agents, call the solver."""
+    """One UAV's ORCA-3D step: select neighbours, build agents, call the solver.
 
-    def __init__(self, solver=None):
+    With a `batcher` (an OrcaBatcher shared with the other managers of the process, which this
+    UAV has joined), the solve goes through it under the key `step_key()` gives, the same for
+    every participant at one control tick; the answer is the same. Without one: the solver.
+    """
+
+    def __init__(self, solver=None, batcher=None, step_key: Callable[[], Hashable] | None = None):
+        if batcher is not None and solver is not None:
+            raise ValueError("OrcaNavigator takes a solver or a batcher, not both: the batcher has its own solver")
+        if batcher is not None and step_key is None:
+            raise ValueError("OrcaNavigator with a batcher needs step_key: a function giving the control step's "
+                             "key, equal for every UAV at one tick (e.g. the tick index)")
         self._solver = solver
+        self._batcher = batcher
+        self._step_key = step_key
         self._warned = False
 
     @property
     def solver(self):
+        if self._batcher is not None:
+            return self._batcher.solver
         if self._solver is None:
             self._solver = default_solver()
         return self._solver
@@ -104,7 +125,11 @@ class OrcaNavigator:
         neighbors = select_neighbors(view, params.max_neighbors, n_obstacles, params.neighbor_dist)
         me, others = orca_agents(view, preferred, neighbors, radius, max_speed, params.agent_radius)
         solver = self.solver
-        solution = solver.new_velocity(me, others, dataclasses.replace(params, max_neighbors=len(others)))
+        params = dataclasses.replace(params, max_neighbors=len(others))
+        if self._batcher is not None and self._step_key is not None:
+            solution = self._batcher.solve(view.own_id, self._step_key(), Problem(me, others, params))
+        else:
+            solution = solver.new_velocity(me, others, params)
         if not self._warned and getattr(solver, "using_service", True) is False:
             self._warned = True
             logger.warning("ORCA-3D service %s is not available: UAV %d avoids with the numpy reference "
