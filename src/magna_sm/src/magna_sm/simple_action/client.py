@@ -64,7 +64,7 @@ class SimpleActionClient:
         self._lock = threading.RLock()
         self._done = threading.Condition(self._lock)
         self._goal: _TrackedGoal | None = None
-        self._ids = GoalIdGenerator()
+        self._ids = GoalIdGenerator(GoalIdGenerator.NODE_NAME)
         self._server_id: str | None = None
         # Our result and feedback connections the server was seen to have added (see _server_connected).
         self._confirmed_links: tuple | None = None

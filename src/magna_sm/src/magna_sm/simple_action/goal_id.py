@@ -18,17 +18,23 @@ def _next_number() -> int:
 class GoalIdGenerator:
     """Makes `GoalID`s of the form `<node name>-<n>-<seconds>.<nanoseconds>`.
 
-    The node name makes ids unique across the ROS graph, the per-process counter
-    unique within a node, and the stamp is the creation time (ROS time), which
+    The name makes ids unique across the ROS graph, the per-process counter
+    unique within a process, and the stamp is the creation time (ROS time), which
     the server uses for "cancel everything stamped at or before t".
+
+    Every caller says which name: a server its action namespace (unique in the
+    graph even when one process hosts many servers, as the UAV manager host does),
+    or NODE_NAME for the node's own name, resolved lazily (objects may be built
+    before rospy.init_node()).
     """
 
-    def __init__(self, name: str | None = None):
+    NODE_NAME = None
+
+    def __init__(self, name: str | None):
         self._name = name
 
     @property
     def name(self) -> str:
-        # Resolved lazily: objects may be built before rospy.init_node().
         return self._name if self._name is not None else rospy.get_name()
 
     def generate(self, stamp: rospy.Time | None = None) -> GoalID:

@@ -101,7 +101,7 @@ class GoalTable:
         self._cancel_cb = cancel_cb
         self._goals: dict[str, ServerGoal] = {}   # insertion order = status list order
         self._last_cancel = rospy.Time()
-        self._ids = GoalIdGenerator()
+        self._ids = GoalIdGenerator(ns)  # not the node's name: a process may host many servers
         self._status_frequency = status_frequency
         self._status_list_timeout = status_list_timeout
         self._started = False
