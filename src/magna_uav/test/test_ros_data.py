@@ -6,13 +6,22 @@ import struct
 import numpy as np
 import pytest
 from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, TwistStamped, Vector3
+from magna_msgs.msg import SwarmState
 from nav_msgs.msg import Odometry
+from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import BatteryState, Image
 from uav_abstraction_layer.msg import State
 from visualization_msgs.msg import Marker, MarkerArray
 
 from magna_common import ros_names as names
-from magna_uav.ros_data import ObstacleMarkers, WorldUpdater, depth_image, marker_obstacle, obstacles_from_markers
+from magna_uav.ros_data import (
+    ObstacleMarkers,
+    SwarmFeed,
+    WorldUpdater,
+    depth_image,
+    marker_obstacle,
+    obstacles_from_markers,
+)
 from magna_uav.world_view import AgentState, WorldView
 from tests.support import CORPUS, wait_until
 
@@ -261,6 +270,89 @@ def test_odom_velocity_matches_the_rotation_matrix_for_any_attitude(seed):
                          [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
                          [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
     np.testing.assert_allclose(data.view.agent(2).velocity, rotation @ body, atol=1e-12)
+
+
+def swarm_of(odoms: dict, stamp: float) -> SwarmState:
+    """The SwarmState magna_sim publishes with these odom messages: the same poses, the velocities in map."""
+    msg = SwarmState()
+    msg.header.stamp.secs, msg.header.stamp.nsecs = int(stamp), int(round(stamp % 1 * 1e9))
+    msg.header.frame_id = "map"
+    for uav_id in sorted(odoms):
+        o = odoms[uav_id]
+        q = o.pose.pose.orientation
+        rotation = Rotation.from_quat([q.x, q.y, q.z, q.w])
+        linear, angular = o.twist.twist.linear, o.twist.twist.angular
+        msg.ids.append(uav_id)
+        msg.poses.append(o.pose.pose)
+        msg.velocities.append(Vector3(*rotation.apply([linear.x, linear.y, linear.z])))
+        msg.angular_velocities.append(Vector3(*rotation.apply([angular.x, angular.y, angular.z])))
+    return msg
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_the_swarm_gives_each_uav_exactly_what_its_odom_gives(seed):
+    rng = np.random.default_rng(seed)
+    odoms = {}
+    for uav_id in (1, 2, 3, 4):
+        q = rng.normal(size=4)
+        odoms[uav_id] = odom(*rng.uniform(-20, 20, size=3), body_velocity=rng.normal(size=3),
+                             body_spin=rng.normal(size=3), orientation=Quaternion(*(q / np.linalg.norm(q))),
+                             stamp=12.345678901)
+    radii = {1: 0.3, 2: 0.5, 3: 0.4, 4: 0.6}
+    by_odom, by_swarm = WorldUpdater(WorldView(1), [2, 3, 4], radii), WorldUpdater(WorldView(1), [2, 3, 4], radii)
+    for uav_id in (2, 3):
+        by_odom.on_odom(uav_id, odoms[uav_id], now=99.0)
+    by_swarm.on_swarm(swarm_of(odoms, 12.345678901), now=99.0, only=[2, 3])
+    assert by_swarm.view.agent(4) is None and by_swarm.view.agent(1) is None  # only the UAVs asked for
+    for uav_id in (2, 3):
+        a, b = by_odom.view.agent(uav_id), by_swarm.view.agent(uav_id)
+        np.testing.assert_array_equal(a.position, b.position)
+        np.testing.assert_array_equal(a.orientation, b.orientation)
+        np.testing.assert_allclose(b.velocity, a.velocity, rtol=0, atol=1e-12)
+        assert b.yaw_rate == pytest.approx(a.yaw_rate, rel=0, abs=1e-12)
+        assert (b.stamp, b.pose_stamp_ns, b.velocity_stamp_ns) == (a.stamp, a.pose_stamp_ns, a.velocity_stamp_ns)
+        assert b.pose_stamp_ns == 12_345_678_901
+        assert b.safety_radius == radii[uav_id]
+
+
+def test_a_swarm_whose_arrays_do_not_match_its_ids_is_refused_whole():
+    data = WorldUpdater(WorldView(1), [2, 3], {1: 0.3, 2: 0.5, 3: 0.5})
+    msg = swarm_of({2: odom(1, 2, 3, (0, 0, 0)), 3: odom(4, 5, 6, (0, 0, 0))}, 1.0)
+    msg.velocities.pop()
+    with pytest.raises(ValueError, match="2 ids, 2 poses, 1 velocities"):
+        data.on_swarm(msg)
+    assert data.view.agent(2) is None
+
+
+def test_one_swarm_feed_subscribes_once_and_feeds_every_view_its_own_uavs():
+    made = []
+
+    class Subscription:
+        def __init__(self, topic, callback):
+            self.topic, self.callback, self.open = topic, callback, True
+            made.append(self)
+
+        def unregister(self):
+            self.open = False
+
+    feed = SwarmFeed(subscribe=Subscription, clock=lambda: 5.0)
+    radii = {1: 0.3, 2: 0.3, 3: 0.3}
+    views = {i: WorldUpdater(WorldView(i), [1, 2, 3], radii) for i in (1, 2, 3)}
+    for i, updater in views.items():
+        feed.join(updater, [j for j in (1, 2, 3) if j != i and j != 3])  # UAV 3 flies by MAVLink: not from here
+    assert len(made) == 1 and made[0].topic == names.SIM_SWARM_STATE and feed.members == 3
+    made[0].callback(swarm_of({j: odom(j, 0, 0, (0, 0, 0)) for j in (1, 2, 3)}, 2.0))
+    assert views[1].view.agent(2).position[0] == 2 and views[2].view.agent(1).position[0] == 1
+    assert views[1].view.agent(3) is None and views[3].view.agent(3) is None  # own UAV 3: from its pose topic
+    feed.leave(views[1])
+    made[0].callback(swarm_of({j: odom(10 * j, 0, 0, (0, 0, 0)) for j in (1, 2, 3)}, 3.0))
+    assert views[1].view.agent(2).position[0] == 2 and views[2].view.agent(1).position[0] == 10
+    bad = swarm_of({1: odom(0, 0, 0, (0, 0, 0))}, 4.0)
+    bad.poses.append(bad.poses[0])
+    assert feed.deliver(bad) == [f"{names.SIM_SWARM_STATE}: swarm state with 1 ids, 2 poses, 1 velocities and 1 "
+                                 f"angular velocities; each array needs one entry per id"]
+    feed.close()
+    assert not made[0].open and feed.members == 0
 
 
 def test_markers_fill_the_views_obstacles():

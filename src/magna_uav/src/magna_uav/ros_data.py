@@ -17,6 +17,12 @@ to, N * (N - 1) per publishing period across the fleet for each topic per other 
 message that carries pose and velocity halves that; nothing reads another UAV's UAL state
 or battery (the evaluator, roles and recorder look at the own UAV's).
 
+In simulation the other UAVs come instead from magna_sim's one message per period,
+/magna/sim/swarm_state (magna_msgs/SwarmState: every simulated UAV's odom values, stamped
+with the odom's stamp), through a `SwarmFeed`: one subscription that feeds every manager of a
+process (a host's N managers deserialise it once, not N times). Only the other UAVs flown by
+MAVLink (hil, real), which magna_sim does not fly, are still heard on their odom.
+
 and to the world node's latched /magna/world/markers, whose namespace "obstacles" becomes
 the view's obstacles (their real shape and their bounding sphere). A UAV enters the view at its first pose: what is
 heard of it before (velocity, state, battery) is kept and shows up with that pose, so the
@@ -34,10 +40,11 @@ from __future__ import annotations
 import dataclasses
 import math
 import threading
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 
 import numpy as np
 from geometry_msgs.msg import PoseStamped, TwistStamped
+from magna_msgs.msg import SwarmState
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import BatteryState, Image
 from uav_abstraction_layer.msg import State
@@ -304,6 +311,29 @@ class WorldUpdater:
         self._update(agent_id, position=(p.x, p.y, p.z), orientation=orientation, velocity=velocity,
                      yaw_rate=spin[2], stamp=stamp, pose_stamp_ns=stamp_ns, velocity_stamp_ns=stamp_ns, pose=True)
 
+    def on_swarm(self, msg: SwarmState, now: float = 0.0, only: Iterable[int] | None = None) -> None:
+        """Pose and velocity of every UAV of the message that this view holds (of `only`, when given), exactly as
+        each one's odom gives them: the same position, orientation and stamp, the velocity already in map, the
+        yaw rate the map z of the angular velocity. ValueError if the arrays do not match the ids."""
+        count = len(msg.ids)
+        if not len(msg.poses) == len(msg.velocities) == len(msg.angular_velocities) == count:
+            raise ValueError(f"swarm state with {count} ids, {len(msg.poses)} poses, {len(msg.velocities)} "
+                             f"velocities and {len(msg.angular_velocities)} angular velocities; each array needs one "
+                             f"entry per id")
+        wanted = self._records.keys() if only is None else set(only) & self._records.keys()
+        stamp = msg.header.stamp.to_sec() or now
+        stamp_ns = _stamp_ns(msg, now)
+        with self.lock:  # the whole swarm at once: a control step never sees half of one instant
+            for index, agent_id in enumerate(msg.ids):
+                if agent_id not in wanted:
+                    continue
+                pose, linear = msg.poses[index], msg.velocities[index]
+                p, q = pose.position, pose.orientation
+                self._update_held(agent_id, position=(p.x, p.y, p.z), orientation=(q.x, q.y, q.z, q.w),
+                                  velocity=(linear.x, linear.y, linear.z),
+                                  yaw_rate=float(msg.angular_velocities[index].z), stamp=stamp,
+                                  pose_stamp_ns=stamp_ns, velocity_stamp_ns=stamp_ns, pose=True)
+
     def on_state(self, agent_id: int, msg: State) -> None:
         self._update(agent_id, ual_state=int(msg.state))
 
@@ -322,24 +352,107 @@ class WorldUpdater:
 
     def _update(self, agent_id: int, pose: bool = False, **values) -> None:
         with self.lock:
-            state = dataclasses.replace(self._records[agent_id], **values)
-            self._records[agent_id] = state
-            if pose:
-                self._posed.add(agent_id)
-            if agent_id in self._posed:
-                self.view.update_agent(state)
+            self._update_held(agent_id, pose, **values)
+
+    def _update_held(self, agent_id: int, pose: bool = False, **values) -> None:
+        """_update with `lock` already held."""
+        state = dataclasses.replace(self._records[agent_id], **values)
+        self._records[agent_id] = state
+        if pose:
+            self._posed.add(agent_id)
+        if agent_id in self._posed:
+            self.view.update_agent(state)
+
+
+class SwarmFeed:
+    """One subscription to the swarm's state, handed to every view of the process that joined it.
+
+    `join(updater, ids)` makes `updater.on_swarm` take the UAVs `ids` from each message; `leave(updater)`
+    stops it. The subscription is made at the first join (`subscribe(topic, callback)` returns a handle
+    with `unregister()`; rospy.Subscriber when not given), and ends with `close()`.
+    """
+
+    def __init__(self, topic: str = names.SIM_SWARM_STATE, subscribe: Callable | None = None,
+                 clock: Callable[[], float] | None = None):
+        self.topic = topic
+        self._subscribe = subscribe
+        self._clock = clock
+        self._lock = threading.Lock()
+        self._members: dict[int, tuple[WorldUpdater, frozenset[int]]] = {}  # by id(updater)
+        self._subscription = None
+
+    def join(self, updater: WorldUpdater, ids: Iterable[int]) -> None:
+        with self._lock:
+            self._members[id(updater)] = (updater, frozenset(int(i) for i in ids))
+            if self._subscription is None:
+                self._subscription = self._make_subscription()
+
+    def leave(self, updater: WorldUpdater) -> None:
+        with self._lock:
+            self._members.pop(id(updater), None)
+
+    @property
+    def members(self) -> int:
+        with self._lock:
+            return len(self._members)
+
+    def deliver(self, msg: SwarmState, now: float | None = None) -> list[str]:
+        """Hand one message to every member; returns what a member refused (one line each)."""
+        if now is None:
+            now = self._clock() if self._clock is not None else 0.0
+        with self._lock:
+            members = list(self._members.values())
+        problems = []
+        for updater, ids in members:
+            try:
+                updater.on_swarm(msg, now, ids)
+            except ValueError as error:  # a bad message: every member would refuse it alike
+                problems.append(f"{self.topic}: {error}")
+                break
+        return problems
+
+    def close(self) -> None:
+        with self._lock:
+            subscription, self._subscription = self._subscription, None
+            self._members.clear()
+        if subscription is not None:
+            subscription.unregister()
+
+    def _make_subscription(self):
+        if self._subscribe is not None:
+            return self._subscribe(self.topic, self.deliver)
+        import rospy
+
+        if self._clock is None:
+            self._clock = rospy.get_time
+
+        def callback(msg: SwarmState) -> None:
+            for problem in self.deliver(msg):
+                rospy.logerr_throttle(5.0, problem)
+
+        return rospy.Subscriber(self.topic, SwarmState, callback, queue_size=1, tcp_nodelay=True)
 
 
 class RosWorldData(WorldUpdater):
-    """WorldUpdater wired to the topics; `close()` (or leaving a `with` block) unsubscribes."""
+    """WorldUpdater wired to the topics; `close()` (or leaving a `with` block) unsubscribes.
+
+    With `swarm`, the other UAVs come from that feed, except those in `odom_ids` (the hil and real ones, which
+    magna_sim does not fly): they, and without a feed every other UAV, are heard on their odom.
+    """
 
     def __init__(self, view: WorldView, agent_ids: list[int], safety_radii: dict[int, float], depth: bool = False,
-                 markers_topic: str = names.WORLD_MARKERS):
+                 markers_topic: str = names.WORLD_MARKERS, swarm: SwarmFeed | None = None,
+                 odom_ids: Iterable[int] = ()):
         import rospy  # here, so that the rest of the module loads without a ROS environment being up
 
         super().__init__(view, agent_ids, safety_radii)
         self._rospy = rospy
         self._subscribers: list[rospy.Subscriber] = []
+        others = [i for i in self.agent_ids if i != view.own_id]
+        odom = set(others) if swarm is None else {int(i) for i in odom_ids} & set(others)
+        self._swarm = swarm
+        if swarm is not None:
+            swarm.join(self, [i for i in others if i not in odom])
 
         def sub(topic, msg_type, handler, *args):
             self._subscribers.append(rospy.Subscriber(topic, msg_type, self._guard(handler, topic), callback_args=args,
@@ -348,9 +461,8 @@ class RosWorldData(WorldUpdater):
         own = topics(view.own_id)
         sub(own["pose"], PoseStamped, self._pose, view.own_id)
         sub(own["velocity"], TwistStamped, self._velocity, view.own_id)
-        for i in self.agent_ids:
-            if i != view.own_id:
-                sub(topics(i)["odom"], Odometry, self._odom, i)
+        for i in sorted(odom):
+            sub(topics(i)["odom"], Odometry, self._odom, i)
         sub(own["state"], State, self.on_state, view.own_id)
         sub(own["battery"], BatteryState, self.on_battery, view.own_id)
         if depth:
@@ -379,6 +491,9 @@ class RosWorldData(WorldUpdater):
         return callback
 
     def close(self) -> None:
+        if self._swarm is not None:
+            self._swarm.leave(self)
+            self._swarm = None
         for subscriber in self._subscribers:
             subscriber.unregister()
         self._subscribers = []
