@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from magna_orca_cpp import native, reference
-from magna_orca_cpp.model import Agent, Params
+from magna_orca_cpp.model import Agent, Params, agent_rows
 from magna_orca_cpp.validation import OrcaInputError
 from tests.support import CORPUS
 
@@ -70,3 +70,9 @@ def test_good_input_after_bad_input_still_solves():
         native.new_velocity(GOOD, [NEIGHBOR], Params(time_horizon=math.nan))
     solved = native.new_velocity(GOOD, [NEIGHBOR], Params())
     assert np.all(np.isfinite(solved.velocity))
+
+
+def test_agent_rows_are_each_agents_row():
+    agents = [Agent([1, 2, 3], [4, 5, 6], [7, 8, 9], 0.5, 2.5), Agent([-1, 0, 1e-300], radius=0, cooperative=False)]
+    np.testing.assert_array_equal(agent_rows(agents), np.stack([a.row() for a in agents]))
+    assert agent_rows([]).shape == (0, 12)

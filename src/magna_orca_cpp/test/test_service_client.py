@@ -38,6 +38,24 @@ def end(process):
     process.wait(10)
 
 
+def test_the_packed_many_request_is_what_genpy_would_write():
+    import io
+
+    from magna_msgs.srv import OrcaComputeVelocityManyRequest
+
+    from magna_orca_cpp.service_client import many_request_bytes, problem_to_msg
+
+    problems = list(scenarios(seed=4, count=30, n_neighbors=(0, 9)))
+    problems[4].neighbors = []
+    problems[7].params = Params()
+    written = io.BytesIO()
+    OrcaComputeVelocityManyRequest(problems=[problem_to_msg(p) for p in problems]).serialize(written)
+    assert many_request_bytes(problems) == written.getvalue()
+    empty = io.BytesIO()
+    OrcaComputeVelocityManyRequest(problems=[]).serialize(empty)
+    assert many_request_bytes([]) == empty.getvalue()
+
+
 def test_solver_falls_back_to_the_reference_and_switches_when_the_server_goes(ros_master, client):
     from magna_orca_cpp.service_client import OrcaSolver
 

@@ -104,10 +104,16 @@ class Problem:
 
 
 def agent_rows(agents: Sequence[Agent]) -> np.ndarray:
-    """(n, 12) rows in the C interface's layout."""
+    """(n, 12) rows in the C interface's layout (`Agent.row` of each), filled column by column: twice
+    as fast as stacking rows, which counts for the hundreds of agents of a many-call."""
     if not agents:
         return np.zeros((0, AGENT_FIELDS))
-    return np.stack([agent.row() for agent in agents])
+    rows = np.empty((len(agents), AGENT_FIELDS))
+    rows[:, 0:3] = [agent.position for agent in agents]
+    rows[:, 3:6] = [agent.velocity for agent in agents]
+    rows[:, 6:9] = [agent.preferred_velocity for agent in agents]
+    rows[:, 9:] = [(agent.radius, agent.max_speed, 1.0 if agent.cooperative else 0.0) for agent in agents]
+    return rows
 
 
 def with_defaults(agent: Agent, params: Params) -> Agent:
