@@ -84,3 +84,21 @@ def test_stop_releases_every_waiting_caller_with_its_reason():
         queue.run(lambda: 1)
     with pytest.raises(LoopStopped):
         queue.wait_for(lambda: 1)
+
+
+def test_release_waiters_fails_the_waiting_callers_and_keeps_serving(loop):
+    outcome = {}
+
+    def wait_for_ever():
+        try:
+            outcome["wait_for"] = loop.queue.wait_for(lambda: None)
+        except LoopStopped as err:
+            outcome["wait_for"] = f"LoopStopped: {err}"
+
+    caller = threading.Thread(target=wait_for_ever, daemon=True)
+    caller.start()
+    wait_until(lambda: loop.queue._waiters, "the caller to wait")
+    loop.queue.run(lambda: loop.queue.release_waiters("the simulation was reset"))
+    caller.join(timeout=WAIT)
+    assert outcome == {"wait_for": "LoopStopped: the simulation was reset"}
+    assert loop.queue.run(lambda: "still served") == "still served"

@@ -203,3 +203,71 @@ def test_a_wall_in_the_way_of_a_dynamic_uav_makes_its_waypoint_stuck(world):
     assert not ual.reached()
     assert uav.position[0] < 2.8  # pressed against the wall's near face
     assert "has come no nearer in 10 s of simulated time" in ual.stuck
+
+
+def _crossing_with_wind(sim):
+    """A dynamic UAV in gusts and a light one fly past a pillar, sensors read with noise: everything per step."""
+    sim.spawn_obstacle("pillar", "cylinder", [1.0, 1.0, 4.0], None, [3.0, 0.0, 2.0], [0, 0, 0, 1])
+    sim.spawn_uav("uav_1", 1, "iris", "dynamic", [0.0, -0.5, 0.0])
+    sim.spawn_uav("uav_2", 2, "iris", "light", [0.0, 1.5, 0.0])
+    sim.step()
+    for uav_id in (1, 2):
+        sim.ual[uav_id].take_off(2.0)
+    trace, crossing = [], False
+    for step in range(round(6.0 / sim.dt)):
+        if not crossing and all(sim.ual[i].state == UalState.FLYING_AUTO for i in (1, 2)):
+            crossing = True
+            sim.ual[1].go_to([6.0, -0.5, 2.0], 0.0)
+            sim.ual[2].go_to([6.0, 1.5, 2.0], 0.5)
+        contacts = sim.step()
+        if step % 8 == 0:
+            sim.drain_batteries(8 * sim.dt)
+            readings = sim.sensor_readings([1, 2], 0.05, 0.02)
+            trace.append([value.tolist() for pair in readings.values() for value in pair])
+        trace.append([(c.uav_id, c.other_kind, c.other_name, c.position.tolist()) for c in contacts])
+        trace.append([v.position.tolist() + v.velocity.tolist() + v.orientation.tolist()
+                      for v in sim.vehicles.values()])
+    trace.append([(b.percentage, int(sim.ual[i].state)) for i, b in sim.batteries.items()])
+    assert crossing, "the UAVs never took off"
+    return trace
+
+
+def test_a_renewed_world_flies_exactly_as_a_cold_one_with_its_seed():
+    cold = SimWorld(seed=21, wind_std=1.5)
+    try:
+        expected = _crossing_with_wind(cold)
+    finally:
+        cold.close()
+    used = SimWorld(seed=4, wind_std=1.5)
+    try:
+        before = _crossing_with_wind(used)  # UAVs, an obstacle, contacts and rng draws to leave behind
+        renewed = used.renewed(21)
+    finally:
+        used.close()
+    try:
+        assert renewed.time == 0.0 and renewed.names() == [] and renewed.wind_std == 1.5
+        flown = _crossing_with_wind(renewed)
+    finally:
+        renewed.close()
+    assert flown == expected  # bit for bit: body ids, gusts, noise, contacts, batteries
+    assert before != expected  # another seed flies otherwise: the comparison can tell
+
+
+def test_sensor_readings_draw_position_then_velocity_noise_uav_by_uav():
+    sim = SimWorld(seed=8)
+    try:
+        for uav_id, y in ((3, 0.0), (1, 2.0)):
+            sim.spawn_uav(f"uav_{uav_id}", uav_id, "iris", "light", [1.0, y, 0.0])
+        readings = sim.sensor_readings([3, 1], 0.1, 0.2)
+        same_seed = np.random.default_rng(8)  # the order a seeded run has always drawn its noise in
+        for uav_id in (3, 1):
+            vehicle = sim.vehicles[uav_id]
+            position, velocity = readings[uav_id]
+            assert position.tolist() == (vehicle.position + same_seed.normal(0.0, 0.1, 3)).tolist()
+            assert velocity.tolist() == (vehicle.velocity + same_seed.normal(0.0, 0.2, 3)).tolist()
+        assert list(readings) == [3, 1]
+        exact = sim.sensor_readings([1], 0.0, 0.0)[1]  # no noise: the true state, and no draw
+        assert exact[0] is sim.vehicles[1].position and exact[1] is sim.vehicles[1].velocity
+        assert sim.rng.bit_generator.state == same_seed.bit_generator.state
+    finally:
+        sim.close()

@@ -82,6 +82,16 @@ class CommandQueue:
         with self._waiters_lock:
             self._waiters.extend(still)
 
+    def release_waiters(self, reason: str) -> None:
+        """Fail every caller still waiting for a check with LoopStopped(reason); the queue goes on serving.
+
+        For a reset: the checks look at a world that is gone, and would never come true."""
+        with self._waiters_lock:
+            waiting, self._waiters = self._waiters, []
+        for ticket in waiting:
+            ticket.error = LoopStopped(reason)
+            ticket.done.set()
+
     def stop(self, reason: str = "the simulation stopped") -> None:
         """Release every caller with LoopStopped; later calls fail at once."""
         self._stopped = True

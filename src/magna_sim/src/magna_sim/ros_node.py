@@ -16,8 +16,15 @@ from dataclasses import dataclass
 import numpy as np
 import rospy
 from geometry_msgs.msg import TransformStamped
-from magna_msgs.msg import CollisionEvent
-from magna_msgs.srv import DeleteModel, DeleteModelResponse, SpawnModel, SpawnModelResponse
+from magna_msgs.msg import CollisionEvent, SwarmState
+from magna_msgs.srv import (
+    DeleteModel,
+    DeleteModelResponse,
+    ResetSimulation,
+    ResetSimulationResponse,
+    SpawnModel,
+    SpawnModelResponse,
+)
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import BatteryState, CameraInfo, Image
 from std_msgs.msg import Float64
@@ -32,7 +39,7 @@ from .mavlink_endpoint import EndpointError, MavlinkEndpoint
 from .mavlink_telemetry import PX4_SITL_HOME
 from .mavlink_vehicle import MavlinkVehicle
 from .pacing import Hold, Lockstep, Pacer, parse_real_time_factor
-from .ros_ual import MAP_FRAME, UalServer, quaternion_yaw
+from .ros_ual import MAP_FRAME, UalServer, quaternion_yaw, swarm_state
 from .streams import stream_publisher
 from .ual_logic import UalSettings
 from .world import SimWorld, SpawnError
@@ -43,12 +50,17 @@ under /uav_{id}/ual/ (pose, velocity, odom, state; set_pose, set_velocity; take_
 land, go_to_waypoint, go_to_waypoint_geo, set_home, recover_from_manual).
 
 Also: /clock, tf map -> uav_{id}/base_link, /magna/sim/collisions (magna_msgs/CollisionEvent),
-/uav_{id}/mavros/battery (sensor_msgs/BatteryState), optional depth images on
-/uav_{id}/camera/depth/image_raw, and the services /magna/sim/spawn_model,
+/magna/sim/swarm_state (magna_msgs/SwarmState: every simulated UAV's pose and velocity once per
+UAL period, the values and stamp of their odom), /uav_{id}/mavros/battery (sensor_msgs/BatteryState),
+optional depth images on /uav_{id}/camera/depth/image_raw, and the services /magna/sim/spawn_model,
 /magna/sim/delete_model and /magna/sim/pause (std_srvs/SetBool: true pauses, false resumes).
 While paused, simulated time stands still; spawning and deleting still work, and /clock
 and the UAL topics are re-sent pub_rate times per wall second with the time frozen, so
 that nodes starting meanwhile learn the time and the poses.
+/magna/sim/reset (magna_msgs/ResetSimulation, a seed) makes the node as it was just started
+with ~seed:=seed: every UAV (with its UAL topics and services) and obstacle gone, time back
+to 0, paused if ~start_paused, the ~uavs of the start spawned again. For a batch of
+simulations on one running simulator.
 
 Private parameters (defaults):
   ~uavs (0)              UAVs 1..N spawned at start, side by side along y near the origin
@@ -243,6 +255,16 @@ class _Schedule:
         return True
 
 
+class _Schedules:
+    """When each stream of the loop is next due, counted from simulated time 0."""
+
+    def __init__(self, settings: NodeSettings):
+        self.clock = _Schedule(settings.clock_rate)
+        self.publish = _Schedule(settings.pub_rate)
+        self.battery = _Schedule(settings.battery_rate)
+        self.camera = _Schedule(settings.camera["rate"]) if settings.camera["enabled"] else None
+
+
 class SimNode:
     def __init__(self, settings: NodeSettings):
         self.settings = settings
@@ -251,29 +273,65 @@ class SimNode:
         self.queue = CommandQueue()
         self.servers: dict[int, UalServer] = {}
         self.cameras: dict[int, tuple[rospy.Publisher, rospy.Publisher]] = {}
-        self._camera = DepthCamera(self.world.client, settings.camera["width"], settings.camera["height"],
-                                   settings.camera["fov"]) if settings.camera["enabled"] else None
         self._clock_pub = stream_publisher("/clock", Clock)
         self._tf_pub = stream_publisher("/tf", TFMessage)
+        self._swarm_pub = stream_publisher(names.SIM_SWARM_STATE, SwarmState)
         self._collision_pub = rospy.Publisher(names.SIM_COLLISIONS, CollisionEvent, queue_size=100)
         self._battery_pubs: dict[int, rospy.Publisher] = {}
+        self._step_heard = threading.Event()
+        self._step_subs: dict[int, rospy.Subscriber] = {}
+        self.mavlink: dict[int, tuple[MavlinkEndpoint, MavlinkVehicle]] = {}  # UAVs that speak MAVLink
+        self._start_over()
+        self._spawn_initial_uavs()
+        self._services = [rospy.Service(names.SIM_SPAWN_MODEL, SpawnModel, self._on_spawn),
+                          rospy.Service(names.SIM_DELETE_MODEL, DeleteModel, self._on_delete),
+                          rospy.Service(names.SIM_PAUSE, SetBool, self._on_pause),
+                          rospy.Service(names.SIM_RESET, ResetSimulation, self._on_reset)]
+
+    def _start_over(self) -> None:
+        """Everything of a simulation's start besides the world and the UAVs: at start, and again at each reset."""
+        settings = self.settings
+        self._camera = DepthCamera(self.world.client, settings.camera["width"], settings.camera["height"],
+                                   settings.camera["fov"]) if settings.camera["enabled"] else None
         self.lockstep = Lockstep(settings.lockstep_lead, settings.lockstep_timeout) if settings.lockstep else None
         # MAVLink clients streaming OFFBOARD set-points are controllers too: the vehicle drops OFFBOARD after
         # COM_OF_LOSS_T of simulated time, so a simulation far ahead of their wall-clock stream would drop it.
         self._offboard_lockstep = (Lockstep(settings.lockstep_lead, settings.lockstep_timeout)
                                    if settings.lockstep else None)
         self._offboard_heard: dict[int, float | None] = {}  # the set-point time last told to it, per UAV
-        self._step_heard = threading.Event()
-        self._step_subs: dict[int, rospy.Subscriber] = {}
-        self.mavlink: dict[int, tuple[MavlinkEndpoint, MavlinkVehicle]] = {}  # UAVs that speak MAVLink
+        self._step_heard.clear()
         self._paused_heartbeat = 0.0  # wall time of the last HEARTBEAT sent while paused
+        self.hold = Hold(settings.start_paused)
+        self._hold_changes_seen = self.hold.changes  # the loop restarts its pacing when this falls behind
+        self._pacer = Pacer(settings.real_time_factor)
+        self._schedules = _Schedules(settings)
+
+    def _spawn_initial_uavs(self) -> None:
+        settings = self.settings
         interface = "ual+mavlink" if settings.mavlink else "ual"
         for i, position in enumerate(initial_positions(settings.uavs, settings.spacing), start=1):
             self.spawn_uav(f"uav_{i}", i, settings.model, settings.flight_model, position, 0.0, interface=interface)
-        self.hold = Hold(settings.start_paused)
-        self._services = [rospy.Service(names.SIM_SPAWN_MODEL, SpawnModel, self._on_spawn),
-                          rospy.Service(names.SIM_DELETE_MODEL, DeleteModel, self._on_delete),
-                          rospy.Service(names.SIM_PAUSE, SetBool, self._on_pause)]
+
+    def reset(self, seed: int) -> str:
+        """Become what a node just started with ~seed:=seed is (run in the loop, between two steps).
+
+        Every UAV goes with its ROS side (UAL server, publishers, subscribers, MAVLink port) so the master keeps
+        nothing stale; the world is a new one, not this one cleared (SimWorld.renewed); time, hold, lockstep,
+        schedules and pacing start over, and the ~uavs of the start are spawned again."""
+        world = self.world.renewed(seed)
+        uavs, obstacles = len(self.world.vehicles), len(self.world.obstacles)
+        self._forget_every_uav()
+        self.queue.release_waiters("interrupted: the simulation was reset")
+        old, self.world = self.world, world
+        old.close()
+        self._start_over()
+        try:
+            self._spawn_initial_uavs()
+        except SpawnError as err:
+            raise SpawnError(f"the world was reset, but the UAVs of the start were not spawned again: {err}") from None
+        return (f"reset with seed {seed}: {uavs} UAV(s) and {obstacles} obstacle(s) removed, simulated time 0"
+                f"{', paused' if self.hold.paused else ''}"
+                f"{f', {self.settings.uavs} UAV(s) spawned as at start' if self.settings.uavs else ''}")
 
     # --- models (simulation thread) --------------------------------------------------------------------------
     def spawn_uav(self, name, uav_id, airframe, flight_model, position, yaw, rgba=(0.2, 0.2, 0.25, 1.0),
@@ -358,7 +416,7 @@ class SimNode:
             self._forget_uav(uav_id)
         return kind
 
-    def _forget_uav(self, uav_id: int) -> None:
+    def _forget_uav(self, uav_id: int, update_ids: bool = True) -> None:
         if uav_id in self.mavlink:
             self.mavlink.pop(uav_id)[0].close()
             self._offboard_heard.pop(uav_id, None)
@@ -374,8 +432,8 @@ class SimNode:
         self._battery_pubs.pop(uav_id).unregister()
         for publisher in self.cameras.pop(uav_id, ()):
             publisher.unregister()
-        ids = [i for i in rospy.get_param(names.UAL_IDS, []) if i != uav_id]
-        rospy.set_param(names.UAL_IDS, ids)
+        if update_ids:
+            rospy.set_param(names.UAL_IDS, [i for i in rospy.get_param(names.UAL_IDS, []) if i != uav_id])
 
     # --- services (callback threads) -------------------------------------------------------------------------
     def _on_spawn(self, req):
@@ -418,6 +476,15 @@ class SimNode:
         self.lockstep.heard(uav_id, msg.data)
         self._step_heard.set()
 
+    def _on_reset(self, req):
+        seed = int(req.seed)
+        if seed < 0:
+            message = f"seed: {seed} must be 0 or more (as ~seed); nothing was reset"
+            rospy.logerr(f"{names.SIM_RESET}: {message}")
+            return ResetSimulationResponse(success=False, message=message)
+        success, message = self._answer(names.SIM_RESET, lambda: self.reset(seed))
+        return ResetSimulationResponse(success=success, message=message if success else f"reset failed: {message}")
+
     def _on_pause(self, req):
         message = self.hold.set(req.data, self.world.time)
         rospy.loginfo(f"{names.SIM_PAUSE}: {message}")
@@ -435,25 +502,19 @@ class SimNode:
 
     # --- the loop --------------------------------------------------------------------------------------------
     def spin(self) -> None:
-        settings = self.settings
-        pacer = Pacer(settings.real_time_factor)
-        clock, publish, battery = (_Schedule(settings.clock_rate), _Schedule(settings.pub_rate),
-                                   _Schedule(settings.battery_rate))
-        camera = _Schedule(settings.camera["rate"]) if self._camera is not None else None
         clock_msg = Clock()
         set_own_time = _own_the_clock()
-        changes = self.hold.changes
         try:
             while not rospy.is_shutdown():
-                self.queue.run_pending()
+                self.queue.run_pending()  # a reset runs here (or in _stand_still): reread everything below
                 if self.mavlink:
                     self._serve_mavlink()
                 if self.hold.paused:
                     self._stand_still(clock_msg, set_own_time)
                     continue
-                if changes != self.hold.changes:  # resumed: pace from here, not from before the pause
-                    changes = self.hold.changes
-                    pacer.restart()
+                if self._hold_changes_seen != self.hold.changes:  # resumed: pace from here, not from before
+                    self._hold_changes_seen = self.hold.changes
+                    self._pacer.restart()
                 if self._behind_a_controller():
                     continue
                 contacts = self.world.step()
@@ -462,21 +523,22 @@ class SimNode:
                 if self.mavlink:
                     self._tick_mavlink(now)
                 stamp = rospy.Time.from_sec(now)
-                if clock.due(now):
+                due = self._schedules
+                if due.clock.due(now):
                     clock_msg.clock = stamp
                     self._clock_pub.publish(clock_msg)
                     if set_own_time is not None:
                         set_own_time(stamp)
-                if publish.due(now):
+                if due.publish.due(now):
                     self._publish_ual(stamp)
-                if battery.due(now):
-                    self.world.drain_batteries(battery.period)
+                if due.battery.due(now):
+                    self.world.drain_batteries(due.battery.period)
                     self._publish_batteries(stamp)
-                if camera is not None and camera.due(now):
+                if due.camera is not None and due.camera.due(now):
                     self._publish_depth(stamp)
                 for contact in contacts:
                     self._publish_contact(contact, stamp)
-                pacer.wait(now)
+                self._pacer.wait(now)
         finally:
             self.shutdown()
 
@@ -552,25 +614,28 @@ class SimNode:
 
     def shutdown(self) -> None:
         self.queue.stop("magna_sim is shutting down")
-        for uav_id in list(self.servers) + [i for i in self.mavlink if i not in self.servers]:
-            try:
-                self._forget_uav(uav_id)
-            except (ConnectionError, OSError):  # the master may already be gone
-                pass
+        try:
+            self._forget_every_uav()
+        except (ConnectionError, OSError):  # the master may already be gone
+            pass
         self.world.close()
+
+    def _forget_every_uav(self) -> None:
+        served = set(self.servers)
+        for uav_id in list(self.servers) + [i for i in self.mavlink if i not in self.servers]:
+            self._forget_uav(uav_id, update_ids=False)
+        if served:  # once for all: a master round trip each would add up with 50 UAVs
+            rospy.set_param(names.UAL_IDS, [i for i in rospy.get_param(names.UAL_IDS, []) if i not in served])
 
     # --- publishing ------------------------------------------------------------------------------------------
     def _publish_ual(self, stamp, tf: bool = True) -> None:
+        """Each UAV's UAL topics and tf, and the swarm's state: the same noisy readings (drawn once) in both."""
         transforms = []
         with_tf = tf and self._tf_pub.get_num_connections() > 0
-        rng = self.world.rng
+        readings = self.world.sensor_readings(self.servers, self.settings.position_std, self.settings.velocity_std)
         for uav_id, server in self.servers.items():
             vehicle = self.world.vehicles[uav_id]
-            position, velocity = vehicle.position, vehicle.velocity
-            if self.settings.position_std > 0:
-                position = position + rng.normal(0.0, self.settings.position_std, 3)
-            if self.settings.velocity_std > 0:
-                velocity = velocity + rng.normal(0.0, self.settings.velocity_std, 3)
+            position, velocity = readings[uav_id]
             server.publish(stamp, position, velocity)
             if not with_tf:
                 continue
@@ -584,6 +649,11 @@ class SimNode:
             transforms.append(transform)
         if transforms:
             self._tf_pub.publish(TFMessage(transforms=transforms))
+        if self._swarm_pub.get_num_connections():
+            vehicles = self.world.vehicles
+            self._swarm_pub.publish(swarm_state(stamp, [
+                (uav_id, position, vehicles[uav_id].orientation, velocity, vehicles[uav_id].angular_velocity)
+                for uav_id, (position, velocity) in readings.items()]))
 
     def _publish_batteries(self, stamp) -> None:
         for uav_id, publisher in self._battery_pubs.items():

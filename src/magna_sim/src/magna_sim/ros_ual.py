@@ -14,7 +14,8 @@ import math
 
 import numpy as np
 import rospy
-from geometry_msgs.msg import PoseStamped, TwistStamped
+from geometry_msgs.msg import Pose, PoseStamped, TwistStamped, Vector3
+from magna_msgs.msg import SwarmState
 from nav_msgs.msg import Odometry
 from std_srvs.srv import EmptyResponse
 from uav_abstraction_layer.msg import State
@@ -50,6 +51,24 @@ def rotate_into_body(orientation_xyzw, vector) -> tuple[float, float, float]:
     # R^T v = v + 2 q' x (q' x v + w v) with q' = -(x, y, z)
     tx, ty, tz = -y * vz + z * vy + w * vx, -z * vx + x * vz + w * vy, -x * vy + y * vx + w * vz
     return (vx + 2.0 * (-y * tz + z * ty), vy + 2.0 * (-z * tx + x * tz), vz + 2.0 * (-x * ty + y * tx))
+
+
+def swarm_state(stamp: rospy.Time, states) -> SwarmState:
+    """The swarm's state at one publication instant.
+
+    `states`: (uav_id, position, orientation_xyzw, velocity, angular_velocity) per UAV, the values its own UAL
+    topics carry at `stamp` (converted to floats the same way, so they compare equal)."""
+    msg = SwarmState()
+    msg.header.stamp, msg.header.frame_id = stamp, MAP_FRAME
+    for uav_id, position, orientation, velocity, angular in sorted(states, key=lambda state: state[0]):
+        pose = Pose()
+        pose.position.x, pose.position.y, pose.position.z = (float(c) for c in position)
+        pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w = (float(c) for c in orientation)
+        msg.ids.append(uav_id)
+        msg.poses.append(pose)
+        msg.velocities.append(Vector3(*(float(c) for c in velocity)))
+        msg.angular_velocities.append(Vector3(*(float(c) for c in angular)))
+    return msg
 
 
 class UalServer:

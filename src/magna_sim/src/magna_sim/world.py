@@ -58,6 +58,7 @@ class SimWorld:
             raise ValueError(f"physics_rate: {physics_rate} must be a positive number of steps per second")
         self.dt = 1.0 / physics_rate
         self.steps = 0
+        self.physics_rate, self.wind_std = physics_rate, wind_std
         self.client = p.connect(p.DIRECT)
         p.setGravity(0.0, 0.0, -9.81, physicsClientId=self.client)
         p.setTimeStep(self.dt, physicsClientId=self.client)
@@ -83,10 +84,35 @@ class SimWorld:
     def time(self) -> float:
         return self.steps * self.dt
 
+    def renewed(self, seed: int | None) -> SimWorld:
+        """A new, empty world with this one's settings and `seed`: the same as a cold start's.
+
+        A new one rather than this one cleared: a fresh pybullet client numbers bodies from the start, and the
+        flight models (which keep the rng) start over. This one stays open; the caller closes it."""
+        return SimWorld(self.physics_rate, seed, self.wind_std, self.ual_settings, self.ground_impact_speed,
+                        self.battery_floor)
+
     def close(self) -> None:
         if self.client is not None and p.isConnected(self.client):
             p.disconnect(self.client)
         self.client = None
+
+    def sensor_readings(self, uav_ids, position_std: float, velocity_std: float
+                        ) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+        """Each UAV's (position, velocity) as its sensors report them: the true ones plus Gaussian noise.
+
+        The noise comes from the world's rng, position then velocity, UAV by UAV in the order of `uav_ids`: a seeded
+        run draws the same numbers only in the same order."""
+        readings = {}
+        for uav_id in uav_ids:
+            vehicle = self.vehicles[uav_id]
+            position, velocity = vehicle.position, vehicle.velocity
+            if position_std > 0:
+                position = position + self.rng.normal(0.0, position_std, 3)
+            if velocity_std > 0:
+                velocity = velocity + self.rng.normal(0.0, velocity_std, 3)
+            readings[uav_id] = (position, velocity)
+        return readings
 
     # --- models ----------------------------------------------------------------------------------------------
     def names(self) -> list[str]:
