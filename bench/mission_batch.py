@@ -1,43 +1,55 @@
-"""Whole-stack mission simulations: how much faster than real time, and how long a dataset of 80 takes.
+"""Whole-stack mission simulations against issue 27's targets: x real time with 2, 10 and 50 UAVs, the
+overhead of each simulation outside its mission, a dataset of 80, memory per UAV and CPU by process.
 
-Everything runs as a user runs it: `./magna run` (a fresh ROS master per simulation, magna_sim,
-the world node, ORCA-3D, the ground station and one UAV manager per UAV, bags on), into a
-temporary data root, headless, rtf max. In one run:
+Everything runs as a user runs it: `./magna run` (by default one persistent stack per batch: a ROS
+master, magna_sim, the world node and ORCA-3D kept up and reset between simulations; a ground station
+and its UAV managers per simulation), bags on, into a temporary data root, headless, rtf max. Side by
+side in one run:
 
-  (a) the simulated-time / wall-time factor over a few simulations (--repeats, default 3) of
-      * the default mission of `make run` (missions/Gym/2UAVs_Crossing_ORCA.json) with 2 UAVs,
-        then right after it the same without bags (--no-bag), same seeds, for comparison;
-      * a 10-UAV version of it (bench/missions/Gym/10UAVs_Crossing_ORCA.json: ten UAVs on two
-        rows of pads, a ring of 8 m round the central obstacles, then every UAV crosses to the
-        opposite side of the ring at 5.5 / 6.5 m and flies home, ORCA-3D throughout);
-      * and again over the simulations of (b);
+  (a) the simulated-time / wall-time factors of --repeats simulations (default 3) of
+      * the default mission of `make run` (missions/Gym/2UAVs_Crossing_ORCA.json), 2 UAVs;
+      * the same with `--cold-start` (a fresh master and launch per simulation), same seeds;
+      * its 10-UAV version (bench/missions/Gym/10UAVs_Crossing_ORCA.json, world Gym/Central_Obstacle_Torus);
+      * the 50-UAV crossing (bench/missions/Gym/50UAVs_Crossing_ORCA.json in bench/worlds/Gym/Big_Crossing,
+        found with --search-path bench; --skip-50 leaves it out, and so does a missing file, said so);
+      * and the batches of the overheads and of (b);
       four factors each, simulated s of the mission over wall s of:
         "flight"  the mission while simulated time ran (its setup left out: the simulator
                   stands still while UAVs are spawned and their managers start);
-        "mission" the mission from its first state to its end, setup included, with the whole
-                  ROS stack running (simulator, world, ORCA, ground station, UAV managers):
-                  the figure DESIGN.md's targets are compared with;
-        "window"  the launch to the ground station's report (what `magna run` prints): adds
-                  the nodes' start-up and the finishing sequence;
-        "e2e"     the whole `magna run` process per simulation: adds the ROS master, the
-                  supervisor and the clean-up;
-      all over the simulations the ground station ended (one stopped by --time-limit is left out);
-  (b) the wall time of one `magna run` of --simulations (default 80) of the default mission,
-      with the average per simulation, the overhead outside the simulations' windows, and the
-      simulations that did not end by themselves (time limit, crash).
+        "mission" the mission from its first state to its end, setup included;
+        "window"  the launch (or the stack's reset) to the ground station's report (what `magna run`
+                  prints);
+        "e2e"     the whole `magna run` process per simulation: the time between two progress lines,
+                  the first one from the process's start (master, stack), the last one to its exit
+                  (stack stopped, pictures, index);
+      all over the simulations the ground station ended (one stopped by --time-limit is left out).
+      Beside them: the physics-only factor of magna_sim for the same number of light UAVs, measured
+      just before each batch (bench/sim_speed.py's physics_steps_per_second / 240 Hz, for
+      --physics-seconds), and the stack's share of the wall time while flying, 1 - flight / physics.
+  Overheads: over a batch of --overhead-batch two-UAV simulations (default 20), the mean and the max of
+      window - mission and e2e - window; and report.html's time per simulation, measured apart (written
+      again for a few of them; `magna run` writes it after each progress line, so it falls in e2e).
+  (b) the wall time of one `magna run` of --simulations (default 80) of the default mission, the
+      average per simulation, and how many ran on a warm stack or started cold (result.json's
+      stack.start; a result without it ran on the cold path).
+  For 10 and 50 UAVs: memory per UAV (the resident sum of the simulation's processes at its peak over
+  the UAVs) and CPU seconds by kind of process, sampled from /proc every 0.5 s (bench/process_usage.py).
 
-The table compares with DESIGN.md section 6: >= 10x real time with 2 UAVs, >= 3x with 10,
-80 simulations in <= 20 minutes (on 2 cores). Prints figures; never fails on a time. The default
-run takes about 25 minutes (the 80 simulations about 20 of them); --simulations 0 skips (b).
+Targets (issue 27, 2 cores, bags on): e2e >= 15x with 2 UAVs, >= 8x with 10, >= 1.5x with 50;
+window - mission and e2e - window <= 1 s each in a batch of 20; 80 simulations in <= 5 min (300 s).
+Each figure is printed with its target, met or missed and the ratio (>= 1 is met). Prints figures;
+never fails on a time. The default run takes about 20-30 minutes on 2 cores; --simulations 0,
+--overhead-batch 0 and --skip-50 leave parts out.
 
-    python bench/mission_batch.py [--repeats 3] [--simulations 80]
-        [--no-bag-10] [-o DIR]
+    python bench/mission_batch.py [--repeats 3] [--simulations 80] [--overhead-batch 20] [--skip-50]
+        [--repeats-50 N] [--no-bag-2] [--no-bag-10] [--physics-seconds 3] [--time-limit 600] [-o DIR]
 """
 from __future__ import annotations
 
 import argparse
 import csv
 import json
+import math
 import os
 import shutil
 import statistics
@@ -52,15 +64,21 @@ if __name__ == "__main__":  # `python bench/mission_batch.py` from any Python ru
     sys.path.append(str(Path(__file__).resolve().parents[1] / "src" / "magna_common" / "src"))
     from magna_common.workspace_bootstrap import run_script_in_workspace
 
-    run_script_in_workspace(__file__)
+    run_script_in_workspace(__file__, modules=("magna_sim", "magna_viz"))
 
 ROOT = Path(__file__).resolve().parent.parent
 MAGNA = ROOT / "magna"
 WORLD = "Gym/Central_Obstacle_Torus"
 MISSION_2 = "Gym/2UAVs_Crossing_ORCA"  # the default of `make run`
 MISSION_10 = ROOT / "bench" / "missions" / "Gym" / "10UAVs_Crossing_ORCA.json"
-TARGET_2, TARGET_10 = 10.0, 3.0  # x real time
-TARGET_80_S = 20 * 60.0  # wall seconds for 80 simulations
+MISSION_50 = ROOT / "bench" / "missions" / "Gym" / "50UAVs_Crossing_ORCA.json"
+WORLD_50 = "Gym/Big_Crossing"  # found under bench/worlds/ with --search-path bench
+WORLD_50_FILE = ROOT / "bench" / "worlds" / "Gym" / "Big_Crossing.json"
+TARGET_E2E = {2: 15.0, 10: 8.0, 50: 1.5}  # x real time, per simulation, the whole `magna run`
+TARGET_OVERHEAD_S = 1.0  # wall s each: window - mission, e2e - window
+TARGET_80_S = 300.0  # wall s for a dataset of 80 two-UAV simulations
+PHYSICS_RATE = 240.0  # Hz, magna_sim's default physics step
+REPORTS_TIMED = 3  # simulations whose report.html is written again to time it
 
 
 @dataclass
@@ -76,17 +94,25 @@ class Simulation:
     timed_out: bool = False
     mission_wall_s: float = 0.0  # result.json: wall s from the mission's first state to its end
     setup_wall_s: float = 0.0  # of those, wall s with simulated time standing still
+    stack_start: str = "cold"  # result.json stack.start: "warm" on a kept stack; absent: the cold path
+
+    @property
+    def flight_wall_s(self) -> float:
+        return self.mission_wall_s - self.setup_wall_s
 
 
 @dataclass
 class Batch:
     label: str
     uavs: int
-    bag: bool
     wall_s: float  # the whole `magna run` process
     exit_code: int
     sims: list[Simulation] = field(default_factory=list)
     load_before: float = 0.0
+    dataset_dir: Path | None = None
+    tail_s: float = 0.0  # wall s from the last progress line to the process's exit (in the last e2e)
+    usage: object = None  # process_usage.Usage when sampled
+    physics_factor: float = float("nan")  # magna_sim's physics alone with as many light UAVs, just before
 
     @property
     def ended(self) -> list[Simulation]:
@@ -104,7 +130,7 @@ class Batch:
 
     @property
     def flight_factor(self) -> float:
-        return self._factor(lambda s: s.mission_wall_s - s.setup_wall_s)
+        return self._factor(lambda s: s.flight_wall_s)
 
     @property
     def mission_factor(self) -> float:
@@ -112,15 +138,11 @@ class Batch:
 
     @property
     def window_factor(self) -> float:
-        """Simulated s / wall s from the launch to the ground station's report, over the ended simulations."""
-        wall = sum(s.window_s for s in self.ended)
-        return sum(s.sim_s for s in self.ended) / wall if wall > 0 else float("nan")
+        return self._factor(lambda s: s.window_s)
 
     @property
     def end_to_end_factor(self) -> float:
-        """Simulated s / wall s of the `magna run` process, per ended simulation."""
-        wall = sum(s.end_to_end_s for s in self.ended)
-        return sum(s.sim_s for s in self.ended) / wall if wall > 0 else float("nan")
+        return self._factor(lambda s: s.end_to_end_s)
 
     @property
     def successes(self) -> int:
@@ -130,14 +152,25 @@ class Batch:
     def collisions(self) -> int:
         return sum(s.collisions for s in self.sims)
 
+    def starts(self) -> dict[str, int]:
+        counts = {"warm": 0, "cold": 0}
+        for s in self.sims:
+            counts[s.stack_start] = counts.get(s.stack_start, 0) + 1
+        return counts
 
-def run_batch(label: str, uavs: int, mission: str, n: int, bag: bool, data_root: Path, name: str,
-              time_limit: float) -> Batch:
-    """One `./magna run` of n simulations; the time each simulation ends is read from its progress line."""
-    argv = [str(MAGNA), "run", "--world", WORLD, "--mission", mission, "--n-iter", str(n), "--rtf", "max",
-            "--data-root", str(data_root), "--name", name, "--append", "--time-limit", f"{time_limit:g}"]
-    if not bag:
-        argv.append("--no-bag")
+
+def stack_start(result: dict) -> str:
+    """"warm" or "cold" from result.json (the batch's extra fields may be kept apart or at the top)."""
+    stack = (result.get("extra") or {}).get("stack") or result.get("stack") or {}
+    return str(stack.get("start") or "cold")
+
+
+def run_batch(label: str, uavs: int, mission: str, n: int, data_root: Path, name: str, time_limit: float, *,
+              world: str = WORLD, options: tuple[str, ...] = (), sample: bool = False) -> Batch:
+    """One `./magna run` of n simulations; the time each simulation ends is read from its progress line.
+    With `sample`, its processes' CPU and memory are sampled from /proc as it runs."""
+    argv = [str(MAGNA), "run", "--world", world, "--mission", mission, "--n-iter", str(n), "--rtf", "max",
+            "--data-root", str(data_root), "--name", name, "--append", "--time-limit", f"{time_limit:g}", *options]
     load = os.getloadavg()[0]
     print(f"-- {label}: {n} simulation(s) ({' '.join(argv[1:])}); load average {load:.1f}", flush=True)
     ends: dict[int, float] = {}
@@ -145,8 +178,12 @@ def run_batch(label: str, uavs: int, mission: str, n: int, bag: bool, data_root:
     # stderr (not a terminal): magna run prints "simulation M (k/N): ..." when each one ends
     process = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, bufsize=1,
                                stdin=subprocess.DEVNULL)
+    sampler = process_usage().ProcessSampler(process.pid) if sample else None
     output = []
     try:
+        if sampler is not None:
+            sampler.__enter__()
+        assert process.stdout is not None
         for line in process.stdout:
             output.append(line)
             if line.startswith("simulation ") and "/" in line.split(":", 1)[0]:
@@ -162,36 +199,86 @@ def run_batch(label: str, uavs: int, mission: str, n: int, bag: bool, data_root:
             process.kill()
             process.wait()
         raise
+    finally:
+        if sampler is not None:
+            sampler.__exit__(None, None, None)
     wall = time.monotonic() - started
     if code != 0:
         print("".join(output[-20:]), end="", flush=True)
         print(f"   magna run exited with status {code}", flush=True)
-    batch = Batch(label, uavs, bag, wall, code, load_before=load)
+    batch = Batch(label, uavs, wall, code, load_before=load, usage=sampler.usage() if sampler else None)
     summaries = list(data_root.glob(f"Simulations/**/{name}/dataset_1/summary.csv"))
     if not summaries:
         print(f"   no summary.csv under {data_root}", flush=True)
         return batch
+    batch.dataset_dir = summaries[0].parent
     previous = 0.0
     with open(summaries[0], newline="") as f:
         for row in csv.DictReader(f):
             m = int(row["id"])
             end = ends.get(m, previous)
             try:
-                result = json.loads((summaries[0].parent / f"simulation_{m}" / "result.json").read_text())
+                result = json.loads((batch.dataset_dir / f"simulation_{m}" / "result.json").read_text())
             except (OSError, ValueError):
                 result = {}
             batch.sims.append(Simulation(m, row["success"] == "True", row["outcome"], float(row["duration"] or 0),
                                          float(row["wall_time"] or 0), end - previous, int(row["collisions"] or 0),
                                          str(result.get("termination", "")), bool(result.get("timed_out")),
                                          float(result.get("mission_wall_time", 0.0)),
-                                         float(result.get("setup_wall_time", 0.0))))
+                                         float(result.get("setup_wall_time", 0.0)), stack_start(result)))
             previous = end
+    if batch.sims:  # the process's exit belongs to its simulations too: the last one carries it
+        batch.tail_s = wall - previous
+        batch.sims[-1].end_to_end_s += batch.tail_s
     return batch
 
 
+def load_bench(name: str):
+    """Another bench script as a module, as tests/test_bench_cli.py loads them."""
+    if str(ROOT) not in sys.path:
+        sys.path.insert(0, str(ROOT))
+    from tests.support import load_module
+
+    return sys.modules.get(f"bench_{name}") or load_module(ROOT / "bench" / f"{name}.py", f"bench_{name}")
+
+
+def process_usage():
+    return load_bench("process_usage")
+
+
+def physics_factor(uavs: int, seconds: float) -> float:
+    """magna_sim's physics alone with `uavs` light UAVs manoeuvring: simulated s per wall s."""
+    return load_bench("sim_speed").physics_steps_per_second("light", uavs, seconds) / PHYSICS_RATE
+
+
+def report_seconds(batch: Batch | None) -> list[float]:
+    """Wall s to write report.html again for a few of the batch's simulations (magna_viz imported first)."""
+    if batch is None or batch.dataset_dir is None:
+        return []
+    from magna_viz.report import write_report
+
+    folders = [batch.dataset_dir / f"simulation_{s.id}" for s in batch.ended[:REPORTS_TIMED]]
+    seconds = []
+    for folder in folders:
+        started = time.perf_counter()
+        try:
+            write_report(folder, overwrite=True)
+        except Exception as error:  # a figure, not a check: say why and go on
+            print(f"   report of {folder.name} not written: {error}", flush=True)
+            continue
+        seconds.append(time.perf_counter() - started)
+    return seconds
+
+
 def fmt_ratio(value: float, target: float, higher_is_better: bool = True) -> str:
-    ratio = value / target if higher_is_better else target / value
-    return f"{ratio:5.2f} {'meets' if ratio >= 1.0 else 'misses'}"
+    """The measured value over its target (the target over it when lower is better): >= 1 is met."""
+    if math.isnan(value):
+        return "    - no data"
+    if higher_is_better:
+        ratio = value / target
+    else:
+        ratio = target / value if value > 0 else math.inf
+    return f"{ratio:5.2f} {'met' if ratio >= 1.0 else 'missed'}"
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -199,10 +286,19 @@ def build_parser() -> argparse.ArgumentParser:
 
     parser = argparse.ArgumentParser(prog="python bench/mission_batch.py", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--repeats", type=int, default=3, help="simulations per speed measurement (default 3)")
+    parser.add_argument("--repeats", type=int, default=3,
+                        help="simulations per speed measurement of table (a) (default 3)")
+    parser.add_argument("--repeats-50", type=int, default=None, metavar="N",
+                        help="simulations of the 50-UAV crossing (default: --repeats)")
+    parser.add_argument("--skip-50", action="store_true", help="leave the 50-UAV crossing out")
+    parser.add_argument("--overhead-batch", type=int, default=20, metavar="N",
+                        help="two-UAV simulations in the batch whose overheads are measured (default 20; 0: skip)")
     parser.add_argument("--simulations", type=int, default=80,
-                        help="size of the timed dataset of the default mission (default 80; 0: skip it)")
+                        help="size of the timed dataset (b) of the default mission (default 80; 0: skip it)")
+    parser.add_argument("--no-bag-2", action="store_true", help="also run the 2-UAV mission without bags")
     parser.add_argument("--no-bag-10", action="store_true", help="also run the 10-UAV mission without bags")
+    parser.add_argument("--physics-seconds", type=float, default=3.0,
+                        help="wall seconds of each physics-only measurement (default 3)")
     add_output(parser, metavar="DIR", old=("--keep-data",),
                help="keep the simulations' data (bags, CSVs) in a new folder under DIR, instead of a temporary "
                     "folder removed at the end")
@@ -211,35 +307,63 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def fifty_missing() -> str:
+    """Why the 50-UAV crossing cannot run (empty: it can)."""
+    missing = [str(p.relative_to(ROOT)) for p in (MISSION_50, WORLD_50_FILE) if not p.is_file()]
+    return f"{' and '.join(missing)} missing" if missing else ""
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if not MAGNA.is_file():
         raise SystemExit(f"{MAGNA} is missing")
     if not MISSION_10.is_file():
         raise SystemExit(f"{MISSION_10} is missing")
+    fifty = "" if args.skip_50 else fifty_missing()
+    run_fifty = not args.skip_50 and not fifty
     if args.output:
         args.output.mkdir(parents=True, exist_ok=True)
         data_root = Path(tempfile.mkdtemp(prefix="mission_batch_", dir=args.output))
     else:
         data_root = Path(tempfile.mkdtemp(prefix="mission_batch_"))
     print(f"{os.cpu_count()} cores; data under {data_root}", flush=True)
+    if args.skip_50:
+        print("-- 50 UAVs: skipped (--skip-50)", flush=True)
+    elif fifty:
+        print(f"-- 50 UAVs: skipped, {fifty} (bench/missions/make_crossing.py writes the mission)", flush=True)
+
     speed: list[Batch] = []
-    dataset = None
+    warm2 = cold2 = ten = big = overhead = dataset = None
+    reports: list[float] = []
+
+    def batch(label, uavs, mission, n, name, **kwargs) -> Batch:
+        # the physics alone right before its batch, so that both see the same machine
+        physics = physics_factor(uavs, args.physics_seconds)
+        print(f"-- physics only, {uavs} light UAVs: {physics:.1f}x", flush=True)
+        b = run_batch(label, uavs, mission, n, data_root, name, args.time_limit, **kwargs)
+        b.physics_factor = physics
+        speed.append(b)
+        return b
+
     try:
-        # bags and --no-bag back to back (same seeds), so that the comparison sees the same machine
-        speed.append(run_batch("2 UAVs, bags", 2, MISSION_2, args.repeats, True, data_root, "bag2",
-                               args.time_limit))
-        speed.append(run_batch("2 UAVs, --no-bag", 2, MISSION_2, args.repeats, False, data_root, "nobag2",
-                               args.time_limit))
-        speed.append(run_batch("10 UAVs, bags", 10, str(MISSION_10), args.repeats, True, data_root, "bag10",
-                               args.time_limit))
+        # the persistent stack and --cold-start back to back (same seeds), so that both see the same machine
+        warm2 = batch("2 UAVs", 2, MISSION_2, args.repeats, "uavs2")
+        cold2 = batch("2 UAVs, --cold-start", 2, MISSION_2, args.repeats, "uavs2_cold", options=("--cold-start",))
+        if args.no_bag_2:
+            batch("2 UAVs, --no-bag", 2, MISSION_2, args.repeats, "uavs2_nobag", options=("--no-bag",))
+        ten = batch("10 UAVs", 10, str(MISSION_10), args.repeats, "uavs10", sample=True)
         if args.no_bag_10:
-            speed.append(run_batch("10 UAVs, --no-bag", 10, str(MISSION_10), args.repeats, False, data_root,
-                                   "nobag10", args.time_limit))
+            batch("10 UAVs, --no-bag", 10, str(MISSION_10), args.repeats, "uavs10_nobag", options=("--no-bag",))
+        if run_fifty:
+            big = batch("50 UAVs", 50, str(MISSION_50),
+                        args.repeats if args.repeats_50 is None else args.repeats_50, "uavs50", world=WORLD_50,
+                        options=("--search-path", str(ROOT / "bench")), sample=True)
+        if args.overhead_batch > 0:
+            overhead = batch(f"2 UAVs, batch of {args.overhead_batch}", 2, MISSION_2, args.overhead_batch,
+                             "overhead")
+        reports = report_seconds(overhead or warm2)
         if args.simulations > 0:
-            dataset = run_batch(f"dataset of {args.simulations}, 2 UAVs, bags", 2, MISSION_2, args.simulations, True,
-                                data_root, "dataset", args.time_limit)
-            speed.append(dataset)
+            dataset = batch(f"2 UAVs, dataset of {args.simulations}", 2, MISSION_2, args.simulations, "dataset")
     finally:
         size = sum(f.stat().st_size for f in data_root.rglob("*") if f.is_file()) / 1e6
         if args.output:
@@ -248,71 +372,112 @@ def main(argv: list[str] | None = None) -> int:
             shutil.rmtree(data_root, ignore_errors=True)
             print(f"data removed ({size:.0f} MB)", flush=True)
 
-    print(f"\n(a) simulated time / wall time, whole ROS stack, rtf max, {os.cpu_count()} cores "
-          f"(mission {MISSION_2} and its 10-UAV version)")
-    head = (f"{'run':34} {'ended':>5} {'ok':>5} {'coll':>4} {'sim s':>6} {'setup s':>7} {'mission s':>9} "
-            f"{'window s':>8} {'e2e s':>6} {'flight x':>8} {'mission x':>9} {'window x':>8} {'e2e x':>6} "
-            f"{'target':>6}  {'ratio mission':>13} {'ratio window':>13}  {'load':>4}")
+    print_speed(speed)
+    if warm2 and cold2 and warm2.ended and cold2.ended:
+        print(f"2 UAVs, e2e with the persistent stack {warm2.end_to_end_factor:.1f}x "
+              f"({mean_of(warm2.ended, 'end_to_end_s'):.1f} s per simulation) vs --cold-start "
+              f"{cold2.end_to_end_factor:.1f}x ({mean_of(cold2.ended, 'end_to_end_s'):.1f} s), same seeds: "
+              f"persistent / cold {warm2.end_to_end_factor / cold2.end_to_end_factor:.2f}")
+    if overhead is not None:
+        print_overheads(overhead, reports)
+    elif reports:
+        print(f"\nreport.html, written again apart: {statistics.mean(reports):.2f} s per simulation "
+              f"(mean of {len(reports)})")
+    if dataset is not None:
+        print_dataset(dataset, args.simulations)
+    for b in (ten, big):
+        if b is not None and b.usage is not None:
+            print(f"\nmemory and CPU, {b.label} ({len(b.sims)} simulation(s), every process of the `magna run`)")
+            process_usage().print_usage(b.usage, b.uavs, max(len(b.sims), 1))
+    if fifty:
+        print(f"\n50 UAVs: not measured, {fifty}")
+    elif args.skip_50:
+        print("\n50 UAVs: not measured (--skip-50)")
+    return 0
+
+
+def mean_of(sims: list[Simulation], name: str) -> float:
+    return statistics.mean(getattr(s, name) for s in sims) if sims else float("nan")
+
+
+def print_speed(speed: list[Batch]) -> None:
+    print(f"\n(a) simulated time / wall time, whole ROS stack, bags on unless said, rtf max, {os.cpu_count()} cores")
+    head = (f"{'run':30} {'ended':>5} {'ok':>5} {'coll':>4} {'warm':>4} {'sim s':>6} {'flight s':>8} "
+            f"{'mission s':>9} {'window s':>8} {'e2e s':>6} {'flight x':>8} {'mission x':>9} {'window x':>8} "
+            f"{'e2e x':>6} {'target':>6} {'ratio e2e':>12} {'physics x':>9} {'stack':>5} {'load':>4}")
     print(head)
     print("-" * len(head))
     for b in speed:
         ended = b.ended
-        n = len(ended) or 1
+        target = TARGET_E2E.get(b.uavs, float("nan"))
+        rate = b.physics_factor
+        share = 1 - b.flight_factor / rate
+        print(f"{b.label:30} {len(ended):>2}/{len(b.sims):<2} {b.successes:>2}/{len(b.sims):<2} {b.collisions:>4} "
+              f"{b.starts()['warm']:>4} {mean_of(ended, 'sim_s'):>6.1f} {mean_of(ended, 'flight_wall_s'):>8.1f} "
+              f"{mean_of(ended, 'mission_wall_s'):>9.1f} {mean_of(ended, 'window_s'):>8.1f} "
+              f"{mean_of(ended, 'end_to_end_s'):>6.1f} {b.flight_factor:>7.1f}x {b.mission_factor:>8.1f}x "
+              f"{b.window_factor:>7.1f}x {b.end_to_end_factor:>5.1f}x {target:>5.1f}x "
+              f"{fmt_ratio(b.end_to_end_factor, target):>12} {rate:>8.1f}x {100 * share:>4.0f}% {b.load_before:>4.1f}")
+    print("ended = simulations the ground station ended (the factors are over these); ok = mission succeeded; "
+          "coll = collisions; warm = simulations run on a kept stack\n"
+          "sim s = simulated s of the mission; flight s = wall s of it while simulated time ran; mission s = wall s "
+          "from its first state to its end (setup included: spawning, managers' start); window = launch or reset -> "
+          "the ground station's report (summary.csv wall_time); e2e = the `magna run` process per simulation\n"
+          "target / ratio e2e = issue 27's e2e target for that many UAVs, e2e x / target (>= 1 met); physics x = "
+          "magna_sim's physics alone with as many light UAVs, measured just before the batch; stack = 1 - flight x "
+          "/ physics x, the share of the flight's wall time spent outside the physics; load = 1-min load average "
+          "before the batch")
 
-        def mean(values, n=n):
-            return sum(values) / n
 
-        target = TARGET_2 if b.uavs == 2 else TARGET_10
-        print(f"{b.label:34} {len(ended):>2}/{len(b.sims):<2} {b.successes:>2}/{len(b.sims):<2} {b.collisions:>4} "
-              f"{mean(s.sim_s for s in ended):>6.1f} {mean(s.setup_wall_s for s in ended):>7.1f} "
-              f"{mean(s.mission_wall_s for s in ended):>9.1f} {mean(s.window_s for s in ended):>8.1f} "
-              f"{mean(s.end_to_end_s for s in ended):>6.1f} {b.flight_factor:>7.1f}x {b.mission_factor:>8.1f}x "
-              f"{b.window_factor:>7.1f}x {b.end_to_end_factor:>5.1f}x {target:>5.0f}x  "
-              f"{fmt_ratio(b.mission_factor, target):>13} {fmt_ratio(b.window_factor, target):>13}  "
-              f"{b.load_before:>4.1f}")
-    bags, nobag, ten = speed[0], speed[1], speed[2]
-    if bags.ended and nobag.ended:
-        print(f"2 UAVs, bags / --no-bag (e2e factor): {bags.end_to_end_factor / nobag.end_to_end_factor:.2f}")
-    if bags.ended and ten.ended:
-        print(f"10 UAVs / 2 UAVs (e2e factor): {ten.end_to_end_factor / bags.end_to_end_factor:.2f}; "
-              f"wall s per simulated s per UAV: 2 UAVs {1 / bags.end_to_end_factor / 2:.4f}, "
-              f"10 UAVs {1 / ten.end_to_end_factor / 10:.4f}")
-    print("ended = simulations the ground station ended (the factors are over these; a simulation stopped by the "
-          "time limit or crashed is left out); ok = mission succeeded; coll = collisions reported\n"
-          "sim s = simulated s of the mission; setup s = wall s of it standing still while UAVs are spawned and "
-          "their managers start; mission s = wall s from the mission's first state to its end (setup included); "
-          "flight x = sim s / (mission s - setup s); mission x = sim s / mission s\n"
-          "window = launch -> ground station's report (summary.csv wall_time, as `magna run` prints it); "
-          "e2e = the whole `magna run` process per simulation (master, start-up, clean-up); "
-          "load = 1-min load average before the batch (2 cores: above 2, something else competes)")
+def print_overheads(batch: Batch, reports: list[float]) -> None:
+    ended = batch.ended
+    print(f"\nOverheads per simulation outside its mission, {batch.label} ({len(ended)} ended of {len(batch.sims)}; "
+          f"target <= {TARGET_OVERHEAD_S:g} s each)")
+    rows = [("window - mission", [s.window_s - s.mission_wall_s for s in ended]),
+            ("e2e - window", [s.end_to_end_s - s.window_s for s in ended])]
+    for name, values in rows:
+        if not values:
+            print(f"{name:34} no ended simulation")
+            continue
+        worst = max(range(len(values)), key=lambda i: values[i])
+        mean = statistics.mean(values)
+        print(f"{name:34} mean {mean:5.2f} s  ratio {fmt_ratio(mean, TARGET_OVERHEAD_S, False)}   "
+              f"max {values[worst]:5.2f} s (simulation {ended[worst].id})  "
+              f"ratio {fmt_ratio(values[worst], TARGET_OVERHEAD_S, False)}")
+    print(f"{'  of e2e: before the first':34} {ended[0].end_to_end_s - ended[0].window_s if ended else 0:5.2f} s "
+          f"(process start, master, stack); after the last progress line {batch.tail_s:.2f} s (stack stop, "
+          "pictures, index.html), both in the figures above")
+    if reports:
+        print(f"{'report.html, written again apart':34} mean {statistics.mean(reports):5.2f} s, "
+              f"max {max(reports):5.2f} s over {len(reports)} (in e2e - window when written in the loop)")
 
-    if dataset is not None:
-        n = len(dataset.sims)
-        windows = sum(s.window_s for s in dataset.sims)
-        e2e = [s.end_to_end_s for s in dataset.sims]
-        print(f"\n(b) a dataset of {args.simulations} simulations of {MISSION_2} (bags on), one `magna run`")
-        print(f"{'simulations run':34} {n} ({dataset.successes} succeeded, {dataset.collisions} collisions, "
-              f"exit status {dataset.exit_code})")
-        scaled = dataset.wall_s * 80 / max(n, 1)
-        print(f"{'wall time':34} {dataset.wall_s:8.1f} s = {dataset.wall_s / 60:5.1f} min   target "
-              f"{TARGET_80_S / 60:.0f} min for 80   ratio {fmt_ratio(scaled, TARGET_80_S, False)}"
-              + (" (scaled to 80)" if n != 80 else ""))
-        if n:
-            print(f"{'per simulation (average)':34} {dataset.wall_s / n:8.1f} s   "
-                  f"(median {statistics.median(e2e):.1f}, min {min(e2e):.1f}, max {max(e2e):.1f})")
-            print(f"{'  inside the window':34} {windows / n:8.1f} s   ({dataset.sim_s / n:.1f} simulated s)")
-            print(f"{'  overhead outside the window':34} {(dataset.wall_s - windows) / n:8.1f} s   "
-                  f"({100 * (dataset.wall_s - windows) / dataset.wall_s:.0f}% of the wall time: master, supervisor, "
-                  "clean-up, process start)")
-            print(f"{'time for 80 at this pace':34} {dataset.wall_s / n * 80 / 60:8.1f} min")
-            stuck = [s for s in dataset.sims if s.timed_out or s.termination != "ground_station"]
-            if stuck:
-                rest = dataset.wall_s - sum(s.end_to_end_s for s in stuck)
-                print(f"{'not ended by the ground station':34} {len(stuck)}: "
-                      + ", ".join(f"#{s.id} {s.termination or '?'} after {s.end_to_end_s:.0f} s" for s in stuck))
-                print(f"{'wall time without them':34} {rest:8.1f} s = {rest / 60:5.1f} min for {n - len(stuck)} "
-                      f"({rest / max(n - len(stuck), 1) * 80 / 60:.1f} min for 80 at that pace)")
-    return 0
+
+def print_dataset(dataset: Batch, size: int) -> None:
+    n = len(dataset.sims)
+    e2e = [s.end_to_end_s for s in dataset.sims]
+    starts = dataset.starts()
+    print(f"\n(b) a dataset of {size} simulations of {MISSION_2} (bags on), one `magna run`")
+    print(f"{'simulations run':34} {n} ({dataset.successes} succeeded, {dataset.collisions} collisions, "
+          f"exit status {dataset.exit_code}); {starts['warm']} on a warm stack, {starts['cold']} started cold")
+    scaled = dataset.wall_s * 80 / max(n, 1)
+    print(f"{'wall time':34} {dataset.wall_s:8.1f} s = {dataset.wall_s / 60:5.1f} min   target "
+          f"{TARGET_80_S:.0f} s for 80 (was 20 min)   ratio {fmt_ratio(scaled, TARGET_80_S, False)}"
+          + (f" (scaled to 80: {scaled:.0f} s)" if n != 80 else ""))
+    if not n:
+        return
+    print(f"{'per simulation (mean)':34} {dataset.wall_s / n:8.1f} s   "
+          f"(median {statistics.median(e2e):.1f}, min {min(e2e):.1f}, max {max(e2e):.1f}; "
+          f"{dataset.sim_s / n:.1f} simulated s)")
+    windows = sum(s.window_s for s in dataset.sims)
+    print(f"{'  outside the windows':34} {(dataset.wall_s - windows) / n:8.1f} s   "
+          f"({100 * (dataset.wall_s - windows) / dataset.wall_s:.0f}% of the wall time)")
+    stuck = [s for s in dataset.sims if s.timed_out or s.termination != "ground_station"]
+    if stuck:
+        rest = dataset.wall_s - sum(s.end_to_end_s for s in stuck)
+        print(f"{'not ended by the ground station':34} {len(stuck)}: "
+              + ", ".join(f"#{s.id} {s.termination or '?'} after {s.end_to_end_s:.0f} s" for s in stuck))
+        print(f"{'wall time without them':34} {rest:8.1f} s for {n - len(stuck)} "
+              f"({rest / max(n - len(stuck), 1) * 80:.0f} s for 80 at that pace)")
 
 
 if __name__ == "__main__":
