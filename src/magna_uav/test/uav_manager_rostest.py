@@ -2,8 +2,9 @@
 """Two UAV managers flying magna_sim UAVs, driven as the ground station drives them.
 
 Runs in uav_manager.test (magna_sim, the world node with one obstacle, orca3d_server,
-managers for UAVs 1 and 2). Goals go through the SimpleAction protocol; positions are
-checked on the simulator's own pose topics, not on what the managers believe.
+the managers of UAVs 1 and 2 in one host process, magna_uav.host_node). Goals go through the
+SimpleAction protocol; positions are checked on the simulator's own pose topics, not on what the
+managers believe.
 
 Each test sets up what it needs (setUp: both managers up, both UAVs flying), so they pass in
 any order: MAGNA_TEST_ORDER=reversed (or shuffled:SEED) in the environment of rostest runs
@@ -28,7 +29,7 @@ import rostest
 from geometry_msgs.msg import PoseStamped, Vector3
 from magna_msgs import msg as actions
 from magna_msgs.srv import AlgorithmControl, Die, StateActualization, StateActualizationResponse
-from std_msgs.msg import String
+from std_msgs.msg import Float64, String, UInt32MultiArray
 
 from magna_sm.simple_action import SimpleActionClient
 from magna_uav.commanders import pose_stamped
@@ -172,6 +173,8 @@ class UavManagerFlights(unittest.TestCase):
         rospy.Service("/magna/gs/state_actualization", StateActualization, cls.on_report)
         cls.critical = rospy.Publisher("/magna/gs/critical_event", String, queue_size=1, latch=True)
         cls.restarted = []  # managers this test started again after test_9's die
+        cls.host_ended = None  # the host's latest list of ended managers
+        rospy.Subscriber("/uav_manager_host/ended", UInt32MultiArray, cls.on_host_ended)
         cls.uav1, cls.uav2 = Uav(1), Uav(2)
 
     @classmethod
@@ -193,6 +196,10 @@ class UavManagerFlights(unittest.TestCase):
             if uav.where()[2] < 0.5:
                 result = uav.do("take_off", height=HEIGHTS[uav.id])
                 self.assertEqual(result.outcome, "succeeded", f"take off {uav.id}: {result.message}")
+
+    @classmethod
+    def on_host_ended(cls, msg):
+        cls.host_ended = list(msg.data)
 
     @classmethod
     def on_report(cls, req):
@@ -442,6 +449,19 @@ class UavManagerFlights(unittest.TestCase):
             return False
 
         wait_until(gone, "the die service to go with its manager")
+        # It ended alone: the host says so, and UAV 1's manager in the same process beats and serves on.
+        def host_says():
+            time.sleep(0.05)
+            return self.host_ended == [2]
+
+        wait_until(host_says, "the host to list UAV 2's manager as ended")
+        mark = rospy.get_time()
+
+        def beats_on():
+            return rospy.wait_for_message("/magna/uav_1/alive", Float64, timeout=WALL_LIMIT).data > mark
+
+        wait_until(beats_on, "a beat of UAV 1's manager after UAV 2's ended")
+        rospy.wait_for_service("/magna/uav_1/die", timeout=1.0)
         # The UAV hovers on; a manager started again (with the parameters its launch left) takes it over,
         # as after a crash in the lab, so that the tests after this one find UAV 2 managed.
         self.restarted.append(subprocess.Popen(["rosrun", "magna_uav", "uav_manager", "__name:=uav_2_manager"],

@@ -36,7 +36,7 @@ from magna_msgs.srv import (
     StateActualizationResponse,
 )
 from sensor_msgs.msg import BatteryState
-from std_msgs.msg import ColorRGBA, Float64, String
+from std_msgs.msg import ColorRGBA, Float64, String, UInt32MultiArray
 from std_srvs.srv import Trigger, TriggerResponse
 from uav_abstraction_layer.msg import State as UalState
 
@@ -75,13 +75,17 @@ from magna_gs.utm_client import UtmLink
 from magna_gs.verdict import FailedActions, judge_actions
 from magna_mavlink.fleet import FleetError, check_against_mission, load_fleet, mavlink_uavs
 from magna_sm.introspection import IntrospectionServer
+from magna_uav.host import describe_hosted, ended_topic, manager_node_name
 
 HELP = """\
 The ground station: runs one mission (ROS-MAGNA mission JSON, current or legacy schema).
 
 Needs magna_sim, the world node (magna_worlds) and, for ORCA-3D, orca3d_server running;
 `roslaunch magna_gs simulation.launch mission_file:=... world:=... subworld:=...` starts
-them all. UAV managers are started by the mission's spawn_agents state.
+them all. UAV managers are started by the mission's spawn_agents state: with ~managers host (the
+default), one process (rosrun magna_uav uav_manager_host) runs the managers of every UAV whose
+agent_manager_on_gs is true, a thread each, and a UAV with it false gets a standalone uav_manager
+(its companion computer's case); with ~managers process every UAV gets a standalone uav_manager.
 
 Services: /magna/gs/state_actualization (StateActualization, from the UAV managers)
           /magna/gs/command (GroundStationCommand: take_off, land, move, turn, follow, get,
@@ -90,8 +94,9 @@ Services: /magna/gs/state_actualization (StateActualization, from the UAV manage
           /magna/gs/continue (std_srvs/Trigger: the operator's button for `wait` states)
 Topics:   /magna/gs/critical_event (std_msgs/String) to every UAV manager
           /magna/uav_{id}/alive (std_msgs/Float64) from each manager: its heartbeat. A manager silent
-          for 0.6 simulated s whose process is gone or stopped is lost (magna_common.liveness): a
-          critical event names it, and its goals end at once (see magna_gs's README)
+          for 0.6 simulated s whose process is gone or stopped, or whose host's thread has ended
+          (/uav_manager_host/ended), is lost (magna_common.liveness): a critical event names it, and its
+          goals end at once (see magna_gs's README)
 Machine:  /magna/sm/mission/structure|status (magna_sm introspection)
 At the end: /magna/master/simulation_termination (SimulationTermination) when a Master serves it,
             with the critical events and their simulated times.
@@ -103,6 +108,8 @@ Private parameters (defaults):
   ~bag (true)                record simulation.bag (tf, markers, UAV poses, the machine's status)
   ~control_rate (10.0)       control rate of the UAV managers it starts
   ~manager_output (log)      where the managers' output goes: log or screen
+  ~managers (host)           host: the managers of the UAVs with agent_manager_on_gs in one process, a
+                             thread each; process: one process per manager
   ~button_timeout (0)        s of sim time after which a wait for the operator's button goes on; 0: never
   ~utm_plan ("")             a UTM plan file (JSON); with it, or when the mission flies "from utm", the
                              ground station starts the UTM node (rosrun magna_gs utm)
@@ -115,6 +122,8 @@ Private parameters (defaults):
 
 SUCCESS_OUTCOMES = ("completed", "succeeded", "success", "mission_completed", "finished")
 BAG_WAIT = 15.0  # wall seconds for the bag to connect to the UAVs' topics
+MANAGER_MODES = ("host", "process")
+HOST_NAME = "uav_manager_host"  # the node name of the manager host the ground station starts
 
 
 def clear_private_params(node_name: str) -> None:
@@ -129,7 +138,12 @@ class GroundStationServices:
     """What the mission's states act through: world node, simulator, UAV managers, pause, bag."""
 
     def __init__(self, mission, mission_file: Path, data_dir: Path | None, save_data: bool, control_rate: float,
-                 manager_output: str, button_timeout: float = 0.0, bag: BagRecorder | None = None):
+                 manager_output: str, button_timeout: float = 0.0, bag: BagRecorder | None = None,
+                 managers: str = "host"):
+        if managers not in MANAGER_MODES:
+            raise MissionError(f"~managers is {managers!r}: give host (the managers of the ground station's UAVs in "
+                               f"one process) or process (one process each)")
+        self.manager_mode = managers
         self.mission, self.mission_file = mission, mission_file
         self.data_dir, self.save_data = data_dir, save_data
         self.control_rate, self.manager_output = control_rate, manager_output
@@ -140,7 +154,10 @@ class GroundStationServices:
         self.clients = ActionClients()
         self.world_parts: list[str] = []
         self.spawned: list[int] = []
-        self.managers: dict[int, subprocess.Popen] = {}
+        self.managers: dict[int, subprocess.Popen] = {}  # each UAV's manager process (a host's is shared)
+        self.hosted: set[int] = set()  # the UAVs whose manager runs in the host
+        self.host_ended: set[int] = set()  # hosted managers whose thread has ended, as the host says
+        self._host_ended_sub: rospy.Subscriber | None = None
         self.configs = {c.id: c for c in mission.agents}
         self.sim_pause = SimulationPause()
         self.bag = bag
@@ -153,7 +170,11 @@ class GroundStationServices:
 
     def _probe_manager(self, uav_id: int) -> str | None:
         process = self.managers.get(uav_id)
-        return describe_process(process) if process is not None else None
+        if process is None:
+            return None
+        if uav_id in self.hosted:
+            return describe_hosted(uav_id, describe_process(process), self.host_ended)
+        return describe_process(process)
 
     def lost_manager(self, uav_id: int) -> LostManager | None:
         """The loss of this UAV's manager, once the watchdog noticed it (its goals then end at once)."""
@@ -273,7 +294,9 @@ class GroundStationServices:
                     rospy.logerr(f"spawn_agents: UAV {config.id}: {answer.message}")
                     return False
                 self.spawned.append(config.id)
-            self._start_manager(config.id)
+            if not self._hosts(config):
+                self._start_manager(config.id)
+        self._start_host([c.id for c in agents if self._hosts(c)])
         for config in agents:  # each manager is ready when its action servers answer
             self.clients.get(config.id, "take_off")
             self.liveness.watch(config.id, rospy.get_time(), time.monotonic())
@@ -314,16 +337,51 @@ class GroundStationServices:
             rospy.logwarn(f"the bag is not recording {', '.join(missing)} after {BAG_WAIT:.0f} s; it will miss "
                           f"their first messages")
 
-    def _start_manager(self, uav_id: int) -> None:
-        clear_private_params(f"uav_{uav_id}_manager")
-        command = ["rosrun", "magna_uav", "uav_manager", f"__name:=uav_{uav_id}_manager", f"_id:={uav_id}",
-                   f"_mission_file:={self.mission_file}", f"_control_rate:={self.control_rate}"]
+    def _hosts(self, config) -> bool:
+        """Whether this UAV's manager runs in the host: host mode, and a manager on the ground station."""
+        return self.manager_mode == "host" and bool(config.manager_on_gs)
+
+    def _manager_params(self, uav_id: int) -> dict[str, object]:
+        """The private parameters of a UAV's manager, standalone or hosted (the host reads them at the same place)."""
+        params: dict[str, object] = {"id": uav_id, "mission_file": str(self.mission_file),
+                                     "control_rate": float(self.control_rate)}
         if self.data_dir:
-            command.append(f"_data_dir:={self.data_dir}")
+            params["data_dir"] = str(self.data_dir)
             if self.save_data:  # its rows reach the CSV as it flies: a manager that dies leaves them
-                command.append(f"_csv_stream:={self.csv_path(uav_id)}")
+                params["csv_stream"] = str(self.csv_path(uav_id))
+        return params
+
+    def _start_manager(self, uav_id: int) -> None:
+        node = manager_node_name(uav_id)
+        clear_private_params(node)
+        params = self._manager_params(uav_id)
+        command = ["rosrun", "magna_uav", "uav_manager", f"__name:={node}", *(f"_{k}:={v}" for k, v in params.items())]
         output = self._child_output()
         self.managers[uav_id] = subprocess.Popen(command, start_new_session=True, stdout=output, stderr=output)
+
+    def _start_host(self, ids: list[int]) -> None:
+        """One process for the managers of `ids`, each reading the parameters its standalone node would have."""
+        if not ids:
+            return
+        clear_private_params(HOST_NAME)
+        for uav_id in ids:
+            node = manager_node_name(uav_id)
+            clear_private_params(node)
+            for key, value in self._manager_params(uav_id).items():
+                rospy.set_param(f"/{node}/{key}", value)
+        rospy.set_param(f"/{HOST_NAME}/ids", list(ids))
+        self.hosted = set(ids)
+        self.host_ended = set()
+        self._host_ended_sub = rospy.Subscriber(ended_topic(HOST_NAME), UInt32MultiArray, self._on_host_ended,
+                                                queue_size=10)
+        output = self._child_output()
+        host = subprocess.Popen(["rosrun", "magna_uav", "uav_manager_host", f"__name:={HOST_NAME}"],
+                                start_new_session=True, stdout=output, stderr=output)
+        for uav_id in ids:
+            self.managers[uav_id] = host
+
+    def _on_host_ended(self, msg: UInt32MultiArray) -> None:
+        self.host_ended = {int(i) for i in msg.data} & self.hosted
 
     def start_utm(self, plan_file: str) -> None:
         """The UTM node for this mission, and the link that hears its plans."""
@@ -383,9 +441,16 @@ class GroundStationServices:
     # --- the end --------------------------------------------------------------------------
     def stop_managers(self, grace: float = 10.0) -> None:
         self.liveness.stop()  # they stop on purpose now
+        host_lost = bool(self.hosted) and all(self.lost_manager(uav_id) is not None for uav_id in self.hosted)
+        ended: set[int] = set()  # processes ended here (a host's pid once)
         for uav_id, process in list(self.managers.items()):
-            if self.lost_manager(uav_id) is not None:  # dead or frozen: nothing to ask it
-                end_process_group(process, grace=0.2)
+            lost = self.lost_manager(uav_id) is not None
+            if lost and uav_id in self.hosted and not host_lost:  # its thread has ended; the others run on
+                continue
+            if lost:  # dead or frozen (a host whose managers are all lost, the same): nothing to ask it
+                if process.pid not in ended:
+                    end_process_group(process, grace=0.2)
+                    ended.add(process.pid)
                 continue
             try:
                 rospy.wait_for_service(manager(uav_id, "die"), timeout=2.0)
@@ -393,12 +458,15 @@ class GroundStationServices:
             except (rospy.ROSException, rospy.ServiceException):
                 pass
         deadline = time.monotonic() + grace
-        for process in self.managers.values():
+        for process in {p.pid: p for p in self.managers.values()}.values():  # the host once
             try:
                 process.wait(max(0.1, deadline - time.monotonic()))
             except subprocess.TimeoutExpired:
                 end_process_group(process)
         self.managers.clear()
+        if self._host_ended_sub is not None:
+            self._host_ended_sub.unregister()
+            self._host_ended_sub = None
         self.clients.stop()
 
     def delete_uavs(self) -> None:
@@ -439,7 +507,8 @@ class GroundStation:
         self.services = GroundStationServices(self.mission, self.mission_file, self.data_dir, self.save_data,
                                               float(rospy.get_param("~control_rate", 10.0)),
                                               rospy.get_param("~manager_output", "log"),
-                                              float(rospy.get_param("~button_timeout", 0.0)), self.bag)
+                                              float(rospy.get_param("~button_timeout", 0.0)), self.bag,
+                                              str(rospy.get_param("~managers", "host")))
         # What a link-lost callback of the fleet's bridges touches exists before the fleet is loaded.
         self.statuses: dict[int, dict] = {c.id: {} for c in self.mission.agents}
         self.critical_events: list[CriticalEvent] = []

@@ -54,6 +54,11 @@ class UalCommander:
                                      "is magna_sim (or the UAV's UAL server) running?") from None
             self._services[name] = rospy.ServiceProxy(full, kind)
 
+    def close(self) -> None:
+        """Unregister the setpoint topics (a manager host goes on after one of its managers ends)."""
+        self._set_velocity.unregister()
+        self._set_pose.unregister()
+
     def _call(self, name: str, **request):
         try:
             return self._services[name](**request)

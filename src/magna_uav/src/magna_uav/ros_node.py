@@ -1,5 +1,10 @@
 """The UAV manager node: one per UAV, on the ground station or on the UAV's companion computer.
 
+`UavManagerNode` is one UAV's manager; `main` runs one in a node of its own (rosrun magna_uav
+uav_manager), magna_uav.host_node runs several in one process, each in a thread of its own. A
+manager holds nothing node-wide: its names are absolute, its rate, timers and goal ids are its
+own, and `close()` unregisters everything it opened.
+
 Its life is a magna_sm state machine: `idle` waits for a goal from the ground station
 (watching the UAV with the evaluator meanwhile), the state named after the action flies
 the role, and the machine goes back to `idle`, until a die request ends it. Goals arrive
@@ -10,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import functools
+import threading
 import time
 from pathlib import Path
 
@@ -35,7 +41,7 @@ from magna_uav.paths import path_msg
 from magna_uav.recorder import HeardStamps, Recorder
 from magna_uav.reporter import Reporter
 from magna_uav.roles import FollowPathRole
-from magna_uav.ros_data import RosWorldData
+from magna_uav.ros_data import RosWorldData, SwarmFeed
 from magna_uav.ros_navigation import NavigationPublisher, navigation_msg
 from magna_uav.settings import Settings, SettingsError, read_settings
 from magna_uav.stepping_clock import SteppingClock
@@ -98,14 +104,22 @@ def ground_station_reporter(uav_id: int) -> Reporter:
 
 
 class UavManagerNode:
-    def __init__(self, settings: Settings):
+    """One UAV's manager. `swarm`: the feed of the simulated UAVs' states it shares with the other managers of its
+    process (a host's); without one it hears every other UAV on its odom."""
+
+    def __init__(self, settings: Settings, swarm: SwarmFeed | None = None):
         self.settings = settings
         own = settings.own
         self.uav_id = own.id
         boundaries = rospy.get_param(names.WORLD_BOUNDARIES, None)
         self.view = WorldView(self.uav_id, boundaries)
         radii = {c.id: c.safety_radius for c in settings.configs}
-        self.data = RosWorldData(self.view, sorted(radii), radii, depth=settings.depth)
+        self.swarm = swarm
+        # magna_sim's swarm message carries the simulated UAVs; those flown by MAVLink are heard on their odom.
+        mavlink_flown = [c.id for c in settings.configs if c.mode != "sitl"]
+        self.data = RosWorldData(self.view, sorted(radii), radii, depth=settings.depth, swarm=self.swarm,
+                                 odom_ids=mavlink_flown)
+        self._runner: threading.Thread | None = None  # the thread running run(): the beat lives with it
         # Created here, not earlier: the commander waits for the UAL services of this UAV.
         from magna_uav.commanders import UalCommander
 
@@ -130,10 +144,11 @@ class UavManagerNode:
             self.recorder.stream_to(settings.csv_stream)  # FileExistsError: the node stops, naming the file
             self.written.add(settings.csv_stream.resolve())
         self._stream_error_told = False
-        step_pub = rospy.Publisher(names.manager(self.uav_id, "control_step"), Float64, queue_size=1,
-                                   tcp_nodelay=True)
+        self.step_pub = rospy.Publisher(names.manager(self.uav_id, "control_step"), Float64, queue_size=1,
+                                        tcp_nodelay=True)
+        # a rate of its own: in a host every manager keeps its own control period
         self.stepping = SteppingClock(rospy.get_time, rospy.Rate(settings.control_rate).sleep,
-                                      lambda sim_time: step_pub.publish(Float64(sim_time)))
+                                      lambda sim_time: self.step_pub.publish(Float64(sim_time)))
         self.manager = UavManager(self.view, self.commander, self.nai, self.evaluator, self.recorder,
                                   self.stepping.clock(), lock=self.data.lock)
         self.desk = OrderDesk()
@@ -148,8 +163,9 @@ class UavManagerNode:
         self.raw_path = rospy.Publisher(name("path/raw"), PathMsg, queue_size=1, latch=True)
         self.smoothed_path = rospy.Publisher(name("path/smoothed"), PathMsg, queue_size=1, latch=True)
         self.goal_pub = rospy.Publisher(name("goal"), PoseStamped, queue_size=1, latch=True)
-        rospy.Subscriber(names.GS_CRITICAL_EVENT, String, self._on_critical_event, queue_size=10)
-        rospy.Subscriber(name("utm_new_flightplan"), Float64, self._on_new_flightplan, queue_size=10)
+        self.subscribers = [
+            rospy.Subscriber(names.GS_CRITICAL_EVENT, String, self._on_critical_event, queue_size=10),
+            rospy.Subscriber(name("utm_new_flightplan"), Float64, self._on_new_flightplan, queue_size=10)]
         self.services = [rospy.Service(name("algorithm_control"), AlgorithmControl, self._on_algorithm_control),
                          rospy.Service(name("die"), Die, self._on_die)]
         self.servers = {}
@@ -298,6 +314,8 @@ class UavManagerNode:
             rospy.logerr(f"UAV {self.uav_id}: {stream.error}; the rows stay in memory for save_csv")
 
     def _beat(self, _event) -> None:
+        if self._runner is not None and not self._runner.is_alive():  # the beat says the manager runs, not the timer
+            return
         try:
             self.alive.publish(Float64(rospy.get_time()))
         except rospy.ROSException:  # shutting down
@@ -341,6 +359,7 @@ class UavManagerNode:
         return False
 
     def run(self) -> str:
+        self._runner = threading.current_thread()
         # The heartbeat runs in simulated time from a timer of its own: a long step does not delay it.
         self.beat = rospy.Timer(rospy.Duration(BEAT_PERIOD), self._beat)
         self.wait_for_own_pose()  # the action servers come up (the manager is "ready") only after it
@@ -355,6 +374,7 @@ class UavManagerNode:
             self.close()
 
     def close(self) -> None:
+        """Stop beating and serving, and unregister every topic and service: in a host the process goes on."""
         if self.beat is not None:
             self.beat.shutdown()
         if self.recorder.stream is not None:
@@ -365,6 +385,12 @@ class UavManagerNode:
         for service in self.services:
             service.shutdown()
         self.data.close()
+        for subscriber in self.subscribers:
+            subscriber.unregister()
+        for publisher in (self.alive, self.step_pub, self.raw_path, self.smoothed_path, self.goal_pub,
+                          self.navigation.publisher):
+            publisher.unregister()
+        self.commander.close()
 
 
 def main(argv=None) -> int:

@@ -1,0 +1,130 @@
+"""The manager host node: the UAV managers of one machine in one process (rosrun magna_uav uav_manager_host)."""
+from __future__ import annotations
+
+import argparse
+import logging
+import os
+import sys
+import threading
+
+import rospy
+from std_msgs.msg import UInt32MultiArray
+
+from magna_uav.host import ENDED_TOPIC, ManagerHost, host_ids, manager_node_name, private_params
+from magna_uav.ros_data import SwarmFeed
+from magna_uav.ros_node import UavManagerNode
+from magna_uav.settings import Settings, SettingsError, read_settings
+
+HELP = """\
+The UAV managers of one machine in one process, nodelet style: each runs in a thread of its own and keeps
+the names, actions, services and heartbeat of the standalone manager (rosrun magna_uav uav_manager
+--help), which it replaces. The ground station starts one for the UAVs whose manager runs on it.
+
+Private parameters:
+  ~ids (required)   the UAVs whose managers this host runs, e.g. _ids:=[1,2]
+Each manager reads the private parameters of the standalone node it replaces, /uav_{id}_manager/...
+(~id, ~mission_file, ~control_rate, ~data_dir, ~csv_stream, ...), as the ground station sets them.
+
+Topics:   ~ended (std_msgs/UInt32MultiArray, latched): the ids of the managers that have ended (a die
+          request, or an error), ascending; a manager's heartbeat stops when it ends
+A die request ends that manager only; once every manager has ended, the host exits (status 0).
+
+Example: rosparam set /uav_1_manager/id 1; rosparam set /uav_2_manager/id 2;
+         rosparam set /uav_1_manager/uav_ids [1,2]; rosparam set /uav_2_manager/uav_ids [1,2]
+         rosrun magna_uav uav_manager_host _ids:=[1,2]
+"""
+
+
+def hosted_settings(ids: list[int]) -> dict[int, Settings]:
+    """Each manager's settings from the private parameters of its standalone node; SettingsError names the node."""
+    settings = {}
+    for uav_id in ids:
+        node = manager_node_name(uav_id)
+        try:
+            settings[uav_id] = read_settings(private_params(node, rospy.get_param))
+        except SettingsError as error:
+            raise SettingsError(f"/{node}: {error}") from None
+        if settings[uav_id].uav_id != uav_id:
+            raise SettingsError(f"/{node}/id is {settings[uav_id].uav_id}, not {uav_id}: the host's ~ids name "
+                                f"UAV {uav_id}, so set /{node}/id to {uav_id}")
+    return settings
+
+
+def unregister_the_rest(timeout: float = 2.0) -> None:
+    """Tell the master this node's remaining topics and services are gone (rospy's /rosout, /clock ...): what its
+    shutdown would do, without the second it spends joining threads. Bounded: a master that does not answer
+    within `timeout` s is left as a killed node would leave it."""
+    import rosgraph
+    from rospy.impl.registration import get_service_manager, get_topic_manager
+
+    master, uri = rosgraph.Master(rospy.get_name()), rospy.core.get_node_uri()
+    topics = get_topic_manager()
+
+    def unregister() -> None:
+        try:
+            for name, _ in topics.get_subscriptions():
+                master.unregisterSubscriber(name, uri)
+            for name, _ in topics.get_publications():
+                master.unregisterPublisher(name, uri)
+            for name, service_uri in get_service_manager().get_services():
+                master.unregisterService(name, service_uri)
+        except Exception as error:  # noqa: BLE001 -- the master may be gone already; nothing left to tell it
+            rospy.logdebug(f"uav_manager_host: unregistering at exit: {error!r}")
+
+    worker = threading.Thread(target=unregister, daemon=True, name="unregister at exit")
+    worker.start()
+    worker.join(timeout)
+
+
+def flush_logs() -> None:
+    """Flush every logging handler (the node's log file) without closing them: nothing is lost at os._exit."""
+    for handler in list(logging._handlerList):  # type: ignore[attr-defined]  # what logging.shutdown walks
+        target = handler()
+        if target is not None:
+            try:
+                target.flush()
+            except (OSError, ValueError):
+                pass
+    sys.stdout.flush()
+    sys.stderr.flush()
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="rosrun magna_uav uav_manager_host", description=HELP,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.parse_known_args(rospy.myargv(argv)[1:] if argv is None else argv)
+    rospy.init_node("uav_manager_host")  # the ground station names it uav_manager_host too
+    try:
+        ids = host_ids(rospy.get_param("~ids", None))
+        settings = hosted_settings(ids)
+    except (ValueError, SettingsError) as error:
+        rospy.logfatal(f"uav_manager_host: {error}")
+        return 2
+    swarm: SwarmFeed | None = None  # until magna_sim publishes the swarm: every manager hears the others' odom
+    ended_pub = rospy.Publisher(f"~{ENDED_TOPIC}", UInt32MultiArray, queue_size=1, latch=True)
+    ended_pub.publish(UInt32MultiArray(data=[]))
+
+    def run_manager(uav_id: int) -> None:
+        try:
+            node = UavManagerNode(settings[uav_id], swarm=swarm)
+        except Exception as error:  # the UAL services never came, or a bad algorithm: this manager only
+            rospy.logfatal(f"uav_manager {uav_id}: {error}")
+            raise
+        node.run()
+
+    host = ManagerHost(ids, run_manager, on_ended=lambda ended: ended_pub.publish(UInt32MultiArray(data=ended)),
+                       log_error=rospy.logerr).start()
+    rospy.loginfo(f"uav_manager_host: managers of UAVs {ids} started, one thread each")
+    while not host.wait(0.1):
+        if rospy.is_shutdown():  # Ctrl-C or a kill: each manager sees it and ends; wait for them a while
+            host.wait(5.0)
+            return 0
+    # Every manager has ended and closed what it opened (their CSV streams flushed and closed). Leave at once,
+    # as a batch wants (rospy's shutdown would take a second joining its threads), after the rest is closed too.
+    if swarm is not None:
+        swarm.close()
+    ended_pub.unregister()
+    rospy.loginfo(f"uav_manager_host: the managers of UAVs {ids} have all ended; exiting")
+    unregister_the_rest()
+    flush_logs()
+    os._exit(0)
