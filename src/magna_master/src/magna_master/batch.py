@@ -62,9 +62,10 @@ from magna_common.records import INTERRUPTED, SUPERVISOR_FAILED, SimulationResul
 from magna_common.ros_master import RosMaster, RosMasterError
 from magna_common.ros_names import HYPERPARAMETERS
 from magna_common.storage_tree import LOGS_DIR, RESULT_FILE, SUMMARY_FILE, StorageError
-from magna_master import storage
+from magna_master import stack, storage
 from magna_master.batch_config import BatchConfig, BatchError, hyperparameters, launch_command
 from magna_master.batch_summary import BatchResult, status
+from magna_master.stack import Stack, StackError, StackPolicy
 
 # --- the loop --------------------------------------------------------------------------------------------------
 
@@ -148,6 +149,29 @@ class _StopFlag:
         return self.event.is_set()
 
 
+class _DiskWatch:
+    """Looks at the free space under a running simulation's folder at most every `disk_check_period`."""
+
+    def __init__(self, batch: Batch, m: int, data_dir: Path | None):
+        self.batch, self.m, self.data_dir = batch, m, data_dir
+        self.next_check = 0.0
+
+    def full(self) -> bool:
+        batch = self.batch
+        now = time.monotonic()
+        if self.data_dir is not None and not batch.disk_full and now >= self.next_check:
+            self.next_check = now + batch.disk_check_period
+            batch.disk_full = batch._disk_full(self.m, self.data_dir)
+        return bool(batch.disk_full)
+
+
+class _RunCold:
+    """What _supervise_warm returns when the simulation must run cold instead."""
+
+
+RUN_COLD = _RunCold()
+
+
 class Batch:
     """One batch run; `run()` returns a BatchResult. Use `run_batch` unless you need the pieces."""
 
@@ -167,6 +191,9 @@ class Batch:
         self.stop = _StopFlag(self.out)
         self.storage_error = ""  # why the batch stopped early for its storage (empty: it did not)
         self.disk_full = ""  # why the running simulation was stopped for its disk (empty: it was not)
+        self.cold_reasons = stack.cold_reasons(config)  # why each simulation starts cold (empty: a warm stack)
+        self.stack: Stack | None = None
+        self.policy = StackPolicy()
 
     def run(self) -> BatchResult:
         config = self.config
@@ -231,6 +258,7 @@ class Batch:
                     break
         finally:
             bar.close()
+            self._stop_stack()
         return BatchResult(config, plan, results, bool(self.stop), time.monotonic() - started, self.storage_error)
 
     def _simulation(self, m: int, plan: storage.StoragePlan) -> SimulationResult | None:
@@ -263,6 +291,75 @@ class Batch:
 
     def _supervise(self, m: int, plan: storage.StoragePlan, work_dir: Path,
                    data_dir: Path | None) -> SimulationResult | None:
+        if not self.cold_reasons:
+            result = self._supervise_warm(m, plan, work_dir, data_dir)
+            if not isinstance(result, _RunCold):
+                return result
+        return self._supervise_cold(m, plan, work_dir, data_dir)
+
+    def _known(self, m: int, plan: storage.StoragePlan, data_dir: Path | None, **extra) -> SimulationResult:
+        """result.json's fields known before simulation m runs."""
+        config = self.config
+        return SimulationResult(id=m, seed=config.seed_of(m), hyperparameters=hyperparameters(config, m, plan),
+                                world_file=config.inputs.world_file, mission_file=config.inputs.mission_file,
+                                data_dir=data_dir, extra=extra)
+
+    def _supervise_warm(self, m: int, plan: storage.StoragePlan, work_dir: Path,
+                        data_dir: Path | None) -> SimulationResult | None | _RunCold:
+        """Simulation m on the batch's persistent stack (started now if there is none); RUN_COLD when the
+        stack could not run it, so that it runs cold instead."""
+        config = self.config
+        logs = work_dir / LOGS_DIR
+        logs.mkdir(exist_ok=True)
+        fresh = self.stack is None
+        if self.stack is None:
+            stack_token = uuid.uuid4().hex
+            try:
+                self.stack = Stack(stack.server_argv(config), logs / "stack", stack_token).start()
+            except StackError as err:
+                self.stack = None
+                self.cold_reasons.append(str(err))
+                print(f"magna run: simulation {m}: {err}; the batch goes on with a cold start per simulation",
+                      file=self.out, flush=True)
+                return RUN_COLD
+        if self.stop:
+            self._discard(work_dir, plan)
+            return None
+        result_path = work_dir / RESULT_FILE
+        token = uuid.uuid4().hex
+        known = self._known(m, plan, data_dir, stack={"start": "cold" if fresh else "warm",
+                                                      "index": self.stack.simulations + 1})
+        request = stack.SimulationRequest(
+            result=str(result_path), log=str(logs / "launch.log"), data_dir=str(data_dir or ""),
+            ros_log_dir=str(logs / "ros"), seed=config.seed_of(m),
+            world_record=str(data_dir / "world.json") if data_dir is not None else "",
+            hyperparameters=hyperparameters(config, m, plan).to_param(),
+            ground_station=stack.ground_station_params(config, data_dir, plan), known=known.to_dict(), token=token,
+            time_limit=config.time_limit or 0.0, stop_grace=config.stop_grace, settle=config.settle,
+            shutdown_timeout=config.shutdown_timeout)
+        self.disk_full = ""
+        disk = _DiskWatch(self, m, data_dir)
+        reply = self.stack.simulate(request, self._supervisor_budget(), lambda: bool(self.stop) or disk.full())
+        leftovers = kill_tagged(token)
+        if not reply.ran:
+            self._stop_stack()
+            print(f"magna run: simulation {m}: the stack could not run it ({reply.reason}); it runs cold",
+                  file=self.out, flush=True)
+            return RUN_COLD
+        result = self._settle_result(m, work_dir, result_path, known, self.stack.server, not reply.healthy,
+                                     leftovers, its_log=f"{self.stack.logs / 'stack_server.log'}")
+        why = self.policy.why_restart(result, reply)
+        if why:
+            self._stop_stack()
+        return result
+
+    def _stop_stack(self) -> None:
+        if self.stack is not None:
+            self.stack.stop()
+            self.stack = None
+
+    def _supervise_cold(self, m: int, plan: storage.StoragePlan, work_dir: Path,
+                        data_dir: Path | None) -> SimulationResult | None:
         config = self.config
         logs = work_dir / LOGS_DIR
         logs.mkdir(exist_ok=True)
@@ -270,9 +367,7 @@ class Batch:
         token = uuid.uuid4().hex
         hyper = hyperparameters(config, m, plan)
         command = launch_command(config, m, data_dir, plan)
-        known = SimulationResult(id=m, seed=config.seed_of(m), hyperparameters=hyper,
-                                 world_file=config.inputs.world_file, mission_file=config.inputs.mission_file,
-                                 data_dir=data_dir)
+        known = self._known(m, plan, data_dir)
         master = RosMaster(log_dir=logs / "ros")
         supervisor = None
         hung = False
@@ -300,6 +395,13 @@ class Batch:
                 end_process_group(supervisor, grace=2.0)
             leftovers = kill_tagged(token)
             master.stop()
+        return self._settle_result(m, work_dir, result_path, known, supervisor, hung, leftovers)
+
+    def _settle_result(self, m: int, work_dir: Path, result_path: Path, known: SimulationResult,
+                       supervisor, hung: bool, leftovers: list[str],
+                       its_log: str = "logs/supervisor.log") -> SimulationResult:
+        """result.json as the supervisor left it, completed with what only the batch knows (a disk that
+        filled, a supervisor that died or hung before writing it, leftovers killed), and written back."""
         result = storage.read_result(result_path)
         changed = False
         if self.disk_full and result is not None and result.final and not result.reported:
@@ -312,7 +414,7 @@ class Batch:
             reported = partial.reported
             ended = ("the supervisor " + ("hung and was killed" if hung else
                                           f"exited with status {supervisor.returncode if supervisor else None}")
-                     + " before writing its result; see logs/supervisor.log")
+                     + f" before writing its result; see {its_log}")
             result = dataclasses.replace(partial, final=True, supervisor_pid=supervisor.pid if supervisor else None,
                                          message=(partial.message + "; " if reported else "") + ended)
             if not reported:
@@ -352,22 +454,23 @@ class Batch:
                 "--settle", str(config.settle), "--shutdown-timeout", str(config.shutdown_timeout),
                 "--parent-pid", str(os.getpid()), "--extra", json.dumps(known), "--", *command]
 
+    def _supervisor_budget(self) -> float:
+        """Wall s a simulation's supervisor may take in all before it is given up as hung."""
+        config = self.config
+        return ((config.time_limit or math.inf) + config.stop_grace + config.settle
+                + 3 * config.shutdown_timeout + self.supervisor_margin)
+
     def _wait_supervisor(self, supervisor, m: int, data_dir: Path | None) -> bool:
         """Wait for the supervisor; on a stop request, or a disk that fills up under `data_dir`, forward SIGINT;
         True when it had to be given up as hung."""
         config = self.config
-        budget = ((config.time_limit or math.inf) + config.stop_grace + config.settle
-                  + 3 * config.shutdown_timeout + self.supervisor_margin)
-        deadline = time.monotonic() + budget
+        deadline = time.monotonic() + self._supervisor_budget()
         stop_deadline = None
-        next_disk_check = 0.0
         self.disk_full = ""
+        disk = _DiskWatch(self, m, data_dir)
         while supervisor.poll() is None:
             now = time.monotonic()
-            if data_dir is not None and not self.disk_full and now >= next_disk_check:
-                next_disk_check = now + self.disk_check_period
-                self.disk_full = self._disk_full(m, data_dir)
-            if (self.stop or self.disk_full) and stop_deadline is None:
+            if (self.stop or disk.full()) and stop_deadline is None:
                 try:
                     os.killpg(supervisor.pid, signal.SIGINT)
                 except ProcessLookupError:

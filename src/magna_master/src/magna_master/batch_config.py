@@ -56,6 +56,8 @@ class BatchConfig:
     battery_floor: float = 0.0  # % of charge simulated batteries keep (PX4 SITL's SIM_BAT_MIN_PCT); 0: run empty
     fleet: Path | None = None  # the fleet file of the mission's hil and real UAVs (magna_mavlink.fleet)
     min_free_mb: float = DEFAULT_MIN_FREE_MB  # MB the dataset's disk keeps free; checked before each simulation
+    # a fresh master and launch for every simulation, instead of one stack kept up across the batch
+    cold_start: bool = False
 
     @property
     def key(self) -> StorageKey:
