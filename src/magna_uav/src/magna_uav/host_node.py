@@ -27,6 +27,7 @@ Each manager reads the private parameters of the standalone node it replaces, /u
 
 Topics:   ~ended (std_msgs/UInt32MultiArray, latched): the ids of the managers that have ended (a die
           request, or an error), ascending; a manager's heartbeat stops when it ends
+          /magna/sim/swarm_state: one subscription feeds every hosted manager's view of the others
 A die request ends that manager only; once every manager has ended, the host exits (status 0).
 
 Example: rosparam set /uav_1_manager/id 1; rosparam set /uav_2_manager/id 2;
@@ -100,7 +101,7 @@ def main(argv=None) -> int:
     except (ValueError, SettingsError) as error:
         rospy.logfatal(f"uav_manager_host: {error}")
         return 2
-    swarm: SwarmFeed | None = None  # until magna_sim publishes the swarm: every manager hears the others' odom
+    swarm = SwarmFeed()  # one subscription feeds every manager's view of the others
     ended_pub = rospy.Publisher(f"~{ENDED_TOPIC}", UInt32MultiArray, queue_size=1, latch=True)
     ended_pub.publish(UInt32MultiArray(data=[]))
 
@@ -121,8 +122,7 @@ def main(argv=None) -> int:
             return 0
     # Every manager has ended and closed what it opened (their CSV streams flushed and closed). Leave at once,
     # as a batch wants (rospy's shutdown would take a second joining its threads), after the rest is closed too.
-    if swarm is not None:
-        swarm.close()
+    swarm.close()
     ended_pub.unregister()
     rospy.loginfo(f"uav_manager_host: the managers of UAVs {ids} have all ended; exiting")
     unregister_the_rest()

@@ -105,7 +105,7 @@ def ground_station_reporter(uav_id: int) -> Reporter:
 
 class UavManagerNode:
     """One UAV's manager. `swarm`: the feed of the simulated UAVs' states it shares with the other managers of its
-    process (a host's); without one it hears every other UAV on its odom."""
+    process (a host's); without one it makes its own, so a standalone manager hears what a hosted one does."""
 
     def __init__(self, settings: Settings, swarm: SwarmFeed | None = None):
         self.settings = settings
@@ -114,7 +114,8 @@ class UavManagerNode:
         boundaries = rospy.get_param(names.WORLD_BOUNDARIES, None)
         self.view = WorldView(self.uav_id, boundaries)
         radii = {c.id: c.safety_radius for c in settings.configs}
-        self.swarm = swarm
+        self._own_swarm = swarm is None
+        self.swarm = SwarmFeed() if swarm is None else swarm
         # magna_sim's swarm message carries the simulated UAVs; those flown by MAVLink are heard on their odom.
         mavlink_flown = [c.id for c in settings.configs if c.mode != "sitl"]
         self.data = RosWorldData(self.view, sorted(radii), radii, depth=settings.depth, swarm=self.swarm,
@@ -385,6 +386,8 @@ class UavManagerNode:
         for service in self.services:
             service.shutdown()
         self.data.close()
+        if self._own_swarm:
+            self.swarm.close()
         for subscriber in self.subscribers:
             subscriber.unregister()
         for publisher in (self.alive, self.step_pub, self.raw_path, self.smoothed_path, self.goal_pub,
