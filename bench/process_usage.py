@@ -9,9 +9,10 @@ roslaunch, and so on. A process's CPU is its last reading, so up to one period o
 exits between two samples is missed.
 
 Used by bench/mission_batch.py for its 10- and 50-UAV runs; on its own it runs a command and prints
-the figures of its tree:
+the figures of its tree, by default one simulation of `make run`'s mission (2 UAVs, bags on, rtf max,
+into a temporary data root, removed):
 
-    python bench/process_usage.py [--period 0.5] -- ./magna run --world ... --mission ...
+    python bench/process_usage.py [--period 0.5] [--uavs N] [-- ./magna run --world ... --mission ...]
 """
 from __future__ import annotations
 
@@ -19,14 +20,18 @@ import argparse
 import os
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 
 CLOCK_TICKS = os.sysconf("SC_CLK_TCK")
 PAGE_BYTES = os.sysconf("SC_PAGE_SIZE")
 
 ROOT_KIND = "magna run (batch, reports)"
+MAGNA = Path(__file__).resolve().parents[1] / "magna"
+DEFAULT_RUN = ["run", "--world", "Gym/Central_Obstacle_Torus", "--mission", "Gym/2UAVs_Crossing_ORCA", "--rtf", "max"]
 # (a piece of the command line, its kind), first match wins; a process keeps the kind of its last reading
 KINDS = [
     ("catkin_find", "rosrun start-up"),
@@ -194,20 +199,25 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="python bench/process_usage.py", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--period", type=float, default=0.5, help="wall seconds between samples (default 0.5)")
-    parser.add_argument("--uavs", type=int, default=0, help="divide the peak memory by this many UAVs")
-    parser.add_argument("command", nargs=argparse.REMAINDER, help="the command to run and sample (after --)")
+    parser.add_argument("--uavs", type=int, default=0,
+                        help="divide the peak memory by this many UAVs (default: 2 for the default command)")
+    parser.add_argument("command", nargs=argparse.REMAINDER,
+                        help="the command to run and sample, after -- (default: one simulation of the default "
+                             "mission with ./magna run)")
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    args = build_parser().parse_args(argv)
     command = args.command[1:] if args.command[:1] == ["--"] else args.command
-    if not command:
-        parser.error("give the command to sample after --")
-    process = subprocess.Popen(command)
-    with ProcessSampler(process.pid, args.period) as sampler:
-        code = process.wait()
+    with tempfile.TemporaryDirectory(prefix="process_usage_") as data_root:
+        if not command:
+            command = [str(MAGNA), *DEFAULT_RUN, "--data-root", data_root]
+            args.uavs = args.uavs or 2
+        print(f"sampling every {args.period:g} s: {' '.join(command)}", flush=True)
+        process = subprocess.Popen(command)
+        with ProcessSampler(process.pid, args.period) as sampler:
+            code = process.wait()
     print_usage(sampler.usage(), args.uavs or None)
     return code
 
