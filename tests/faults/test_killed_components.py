@@ -34,7 +34,7 @@ from magna_common.processes import TOKEN_ENV, ancestors, tagged_processes
 from magna_common.simulation_bag import read_simulation_bag
 from magna_gs.inputs import resolve_inputs
 from magna_master.batch import Batch
-from magna_master.batch_config import DEFAULT_LAUNCH_COMMAND, BatchConfig
+from magna_master.batch_config import BatchConfig
 from magna_uav.recorder import read_csv
 from tests.support import wait_until
 
@@ -104,9 +104,10 @@ def csv_rows(path: Path, role: str | None = None) -> int:
 class FaultDrill:
     def __init__(self, tmp_path: Path):
         inputs = resolve_inputs(WORLD, str(MISSION))
-        # One process per UAV manager: the drill kills and freezes UAV 2's alone (in a host, a thread).
+        # One process per UAV manager: the drill kills and freezes UAV 2's alone (in a host, a thread). A cold
+        # start each: the drill finds each simulation's processes by the logs they keep in its folder.
         self.config = BatchConfig(inputs=inputs, n_iter=6, rtf="5", data_root=tmp_path, time_limit=TIME_LIMIT,
-                                  stop_grace=3.0, launch_command=(*DEFAULT_LAUNCH_COMMAND, "managers:=process"))
+                                  stop_grace=3.0, managers="process", cold_start=True)
         self.dataset = self.config.dataset_dir
         self.simulations = {m: Simulation(m) for m in range(1, 7)}
         self.results = {}

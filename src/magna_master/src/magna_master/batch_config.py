@@ -17,11 +17,11 @@ DEFAULT_LAUNCH_COMMAND: tuple[str, ...] = (
     "roslaunch", "--sigint-timeout=5", "--sigterm-timeout=2", "magna_gs", "simulation.launch",
     "mission_file:={mission_file}", "world:={world}", "subworld:={subworld}", "worlds_path:={worlds_path}",
     "data_dir:={data_dir}", "rtf:={rtf}", "seed:={seed}", "bag:={bag}", "save_data:={save_data}",
-    "output:={output}", "button_timeout:={button_timeout}",
+    "output:={output}", "button_timeout:={button_timeout}", "managers:={managers}",
 )
 PLACEHOLDERS = ("mission_file", "world", "subworld", "worlds_path", "data_dir", "rtf", "seed", "bag", "save_data",
                 "output", "mission", "submission", "n_simulation", "button_timeout", "rviz", "utm_plan",
-                "battery_floor", "fleet")
+                "battery_floor", "fleet", "managers")
 
 
 class BatchError(UserError):
@@ -58,6 +58,8 @@ class BatchConfig:
     min_free_mb: float = DEFAULT_MIN_FREE_MB  # MB the dataset's disk keeps free; checked before each simulation
     # a fresh master and launch for every simulation, instead of one stack kept up across the batch
     cold_start: bool = False
+    # host: the UAV managers of the ground station share one process (a thread each); process: one each
+    managers: str = "host"
 
     @property
     def key(self) -> StorageKey:
@@ -96,7 +98,7 @@ def launch_command(config: BatchConfig, m: int, data_dir: Path | None, plan: Sto
         "save_data": _bool(plan.save), "output": config.output, "mission": i.mission, "submission": i.submission,
         "n_simulation": str(m), "button_timeout": f"{config.button_timeout:g}", "rviz": _bool(config.rviz),
         "utm_plan": str(config.utm_plan) if config.utm_plan else "", "battery_floor": f"{config.battery_floor:g}",
-        "fleet": str(config.fleet) if config.fleet else "",
+        "fleet": str(config.fleet) if config.fleet else "", "managers": config.managers,
     }
     argv = []
     for arg in config.launch_command:

@@ -3,7 +3,7 @@
     magna run --world Gym/1Obs_Central_Cylinder --mission Gym/2UAVs_2paths_Central_Cylinder --n-iter 5 \\
         [--name NAME] [--dataset N] [--rtf max|FACTOR] [--seed S] [--no-bag] [--rviz] [--search-path DIR ...] \\
         [--data-root DIR] [--append|--overwrite|--skip-save] [--time-limit SECONDS] [--launch-command CMD] [--strict] \\
-        [--fleet FLEET.yaml] [--min-free-space MB] [--cold-start]
+        [--fleet FLEET.yaml] [--min-free-space MB] [--cold-start] [--managers host|process]
 
 Exit status: 0 when every simulation ran to a mission outcome (a failed mission is data, not an
 error), 1 when one or more crashed or could not start, or the disk filled up during the batch, 2 for
@@ -116,6 +116,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--min-free-space", type=float, default=DEFAULT_MIN_FREE_MB, metavar="MB",
                         help="MB the disk of the dataset keeps free: checked before the batch and before each "
                              "simulation, which is not started below it (default: %(default)g)")
+    parser.add_argument("--managers", choices=("host", "process"), default="host",
+                        help="host (default): the UAV managers run in one process, a thread each, with the same "
+                             "ROS names; process: one process per manager, as a real UAV's companion computer runs it")
     parser.add_argument("--cold-start", action="store_true",
                         help="a fresh ROS master and launch for every simulation; by default a batch keeps one "
                              "stack (master, simulator, world node, ORCA-3D) up and resets it between its "
@@ -172,7 +175,7 @@ def build_config(args):
                        data_root=args.data_root, policy=args.policy,
                        time_limit=args.time_limit or None, button_timeout=args.button_timeout,
                        launch_command=command, rviz=args.rviz, min_free_mb=args.min_free_space,
-                       cold_start=args.cold_start)
+                       cold_start=args.cold_start, managers=args.managers)
 
 
 def check_fleet(mission_file: Path, fleet_file: Path | None, rtf: str) -> tuple[Path | None, str]:

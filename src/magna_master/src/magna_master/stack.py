@@ -242,4 +242,5 @@ def ground_station_params(config, data_dir: Path | None, plan) -> dict:
     return {"mission_file": str(i.mission_file), "data_dir": str(data_dir) if data_dir is not None else "",
             "bag": bool(plan.save and config.bag), "save_data": bool(plan.save), "control_rate": 10.0,
             "manager_output": config.output, "button_timeout": float(config.button_timeout),
-            "utm_plan": str(config.utm_plan) if config.utm_plan else "", "fleet_file": "", "teardown": False}
+            "utm_plan": str(config.utm_plan) if config.utm_plan else "", "fleet_file": "", "teardown": False,
+            "managers": config.managers}

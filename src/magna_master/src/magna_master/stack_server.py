@@ -156,7 +156,8 @@ class StackServer:
         env["ROS_LOG_DIR"] = request.ros_log_dir
         command = [sys.executable, _ground_station_script(), f"__name:={GROUND_STATION_NODE[1:]}"]
         core = self.core = SupervisorCore(
-            command, Path(request.result), Path(request.log), data_dir=Path(request.data_dir) if request.data_dir else None,
+            command, Path(request.result), Path(request.log),
+            data_dir=Path(request.data_dir) if request.data_dir else None,
             time_limit=request.time_limit, stop_grace=request.stop_grace, settle=request.settle,
             shutdown_timeout=request.shutdown_timeout,
             known=SimulationResult.from_dict(request.known, "the stack request"), token=request.token,
