@@ -396,6 +396,12 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
+def fmt(value: float, width: int, unit: str = "", digits: int = 1) -> str:
+    """A table cell: the value with its unit, or '-' when there is none."""
+    text = "-" if math.isnan(value) else f"{value:.{digits}f}{unit}"
+    return f"{text:>{width}}"
+
+
 def mean_of(sims: list[Simulation], name: str) -> float:
     return statistics.mean(getattr(s, name) for s in sims) if sims else float("nan")
 
@@ -411,13 +417,19 @@ def print_speed(speed: list[Batch]) -> None:
         ended = b.ended
         target = TARGET_E2E.get(b.uavs, float("nan"))
         rate = b.physics_factor
-        share = 1 - b.flight_factor / rate
+        share = 100 * (1 - b.flight_factor / rate)
         print(f"{b.label:30} {len(ended):>2}/{len(b.sims):<2} {b.successes:>2}/{len(b.sims):<2} {b.collisions:>4} "
-              f"{b.starts()['warm']:>4} {mean_of(ended, 'sim_s'):>6.1f} {mean_of(ended, 'flight_wall_s'):>8.1f} "
-              f"{mean_of(ended, 'mission_wall_s'):>9.1f} {mean_of(ended, 'window_s'):>8.1f} "
-              f"{mean_of(ended, 'end_to_end_s'):>6.1f} {b.flight_factor:>7.1f}x {b.mission_factor:>8.1f}x "
-              f"{b.window_factor:>7.1f}x {b.end_to_end_factor:>5.1f}x {target:>5.1f}x "
-              f"{fmt_ratio(b.end_to_end_factor, target):>12} {rate:>8.1f}x {100 * share:>4.0f}% {b.load_before:>4.1f}")
+              f"{b.starts()['warm']:>4} {fmt(mean_of(ended, 'sim_s'), 6)} {fmt(mean_of(ended, 'flight_wall_s'), 8)} "
+              f"{fmt(mean_of(ended, 'mission_wall_s'), 9)} {fmt(mean_of(ended, 'window_s'), 8)} "
+              f"{fmt(mean_of(ended, 'end_to_end_s'), 6)} {fmt(b.flight_factor, 8, 'x')} "
+              f"{fmt(b.mission_factor, 9, 'x')} {fmt(b.window_factor, 8, 'x')} {fmt(b.end_to_end_factor, 6, 'x')} "
+              f"{fmt(target, 6, 'x')} {fmt_ratio(b.end_to_end_factor, target):>12} {fmt(rate, 9, 'x')} "
+              f"{fmt(share, 5, '%', 0)} {b.load_before:>4.1f}")
+    for b in speed:
+        for s in b.sims:
+            if s not in b.ended:
+                print(f"{b.label}: simulation {s.id} left out, it ended {s.termination or '?'} ({s.outcome}) after "
+                      f"{s.end_to_end_s:.0f} wall s, {s.sim_s:.1f} simulated s")
     print("ended = simulations the ground station ended (the factors are over these); ok = mission succeeded; "
           "coll = collisions; warm = simulations run on a kept stack\n"
           "sim s = simulated s of the mission; flight s = wall s of it while simulated time ran; mission s = wall s "
