@@ -11,6 +11,7 @@ import rospy
 from std_msgs.msg import UInt32MultiArray
 
 from magna_uav.host import ENDED_TOPIC, ManagerHost, host_ids, manager_node_name, private_params
+from magna_uav.nai.orca_batch import OrcaBatcher
 from magna_uav.ros_data import SwarmFeed
 from magna_uav.ros_node import UavManagerNode
 from magna_uav.settings import Settings, SettingsError, read_settings
@@ -28,6 +29,8 @@ Each manager reads the private parameters of the standalone node it replaces, /u
 Topics:   ~ended (std_msgs/UInt32MultiArray, latched): the ids of the managers that have ended (a die
           request, or an error), ascending; a manager's heartbeat stops when it ends
           /magna/sim/swarm_state: one subscription feeds every hosted manager's view of the others
+Service:  /magna/orca3d/compute_velocity_many: the ORCA-3D steps of every hosted manager at one control
+          tick go in one call (the same answers as one call per UAV)
 A die request ends that manager only; once every manager has ended, the host exits (status 0).
 
 Example: rosparam set /uav_1_manager/id 1; rosparam set /uav_2_manager/id 2;
@@ -102,12 +105,13 @@ def main(argv=None) -> int:
         rospy.logfatal(f"uav_manager_host: {error}")
         return 2
     swarm = SwarmFeed()  # one subscription feeds every manager's view of the others
+    orca_batcher = OrcaBatcher()  # one ORCA-3D call per control tick for every manager flying with it
     ended_pub = rospy.Publisher(f"~{ENDED_TOPIC}", UInt32MultiArray, queue_size=1, latch=True)
     ended_pub.publish(UInt32MultiArray(data=[]))
 
     def run_manager(uav_id: int) -> None:
         try:
-            node = UavManagerNode(settings[uav_id], swarm=swarm)
+            node = UavManagerNode(settings[uav_id], swarm=swarm, orca_batcher=orca_batcher)
         except Exception as error:  # the UAL services never came, or a bad algorithm: this manager only
             rospy.logfatal(f"uav_manager {uav_id}: {error}")
             raise

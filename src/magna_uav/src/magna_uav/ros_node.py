@@ -36,6 +36,8 @@ from magna_uav.evaluator import Evaluator
 from magna_uav.goals import ROLE_ACTIONS, role_from_goal
 from magna_uav.manager import ABORTED, PILOT_TAKEOVER, PREEMPTED, RoleResult, UavManager
 from magna_uav.nai.interface import NavigationInterface
+from magna_uav.nai.orca import OrcaNavigator
+from magna_uav.nai.orca_batch import OrcaBatcher
 from magna_uav.order_desk import Order, OrderDesk
 from magna_uav.paths import path_msg
 from magna_uav.recorder import HeardStamps, Recorder
@@ -103,11 +105,32 @@ def ground_station_reporter(uav_id: int) -> Reporter:
                     warn=lambda message: rospy.logwarn_throttle(10, message), debug=rospy.logdebug)
 
 
+def wait_until_sim_time(target: float) -> None:
+    """Block until ROS time reaches `target` seconds: on /clock, woken by the message that reaches it (every
+    waiter for the same target wakes on the same one), as rospy.Rate would be; on the wall clock, a sleep."""
+    if rospy.rostime.is_wallclock():
+        rospy.sleep(target - rospy.get_time())
+        return
+    rostime_changed = rospy.rostime.get_rostime_cond()  # notified, under itself, after /clock sets the time
+    start = rospy.get_time()
+    with rostime_changed:
+        while not rospy.is_shutdown():
+            now = rospy.get_time()
+            if now >= target:
+                return
+            if now < start:
+                raise rospy.exceptions.ROSTimeMovedBackwardsException(start - now)
+            rostime_changed.wait(0.5)
+    raise rospy.ROSInterruptException("ROS shutdown request")
+
+
 class UavManagerNode:
     """One UAV's manager. `swarm`: the feed of the simulated UAVs' states it shares with the other managers of its
-    process (a host's); without one it makes its own, so a standalone manager hears what a hosted one does."""
+    process (a host's); without one it makes its own, so a standalone manager hears what a hosted one does.
+    `orca_batcher`: the ORCA-3D batcher it shares with them (one call per control tick for all, same answers);
+    without one, each ORCA-3D step is a call of its own."""
 
-    def __init__(self, settings: Settings, swarm: SwarmFeed | None = None):
+    def __init__(self, settings: Settings, swarm: SwarmFeed | None = None, orca_batcher: OrcaBatcher | None = None):
         self.settings = settings
         own = settings.own
         self.uav_id = own.id
@@ -130,7 +153,10 @@ class UavManagerNode:
             # instead of inside algorithm_control, during which the simulator runs (at rtf max, tens of
             # empty simulated seconds before take-off).
             import torch  # noqa: F401
-        self.nai = NavigationInterface(own.max_speed, own.safety_radius)
+        orca = None
+        if orca_batcher is not None:  # steps on the shared tick go in one call; a role's first step alone
+            orca = OrcaNavigator(batcher=orca_batcher, step_key=lambda: self.stepping.tick_key)
+        self.nai = NavigationInterface(own.max_speed, own.safety_radius, orca=orca)
         if settings.algorithm != "simple":
             self.nai.control(settings.algorithm, "set")
         self.evaluator = Evaluator(own, settings.low_battery)
@@ -147,9 +173,10 @@ class UavManagerNode:
         self._stream_error_told = False
         self.step_pub = rospy.Publisher(names.manager(self.uav_id, "control_step"), Float64, queue_size=1,
                                         tcp_nodelay=True)
-        # a rate of its own: in a host every manager keeps its own control period
-        self.stepping = SteppingClock(rospy.get_time, rospy.Rate(settings.control_rate).sleep,
-                                      lambda sim_time: self.step_pub.publish(Float64(sim_time)))
+        # steps on the ticks of the control period: in a host every manager steps at the same instants
+        self.stepping = SteppingClock(rospy.get_time, wait_until_sim_time,
+                                      lambda sim_time: self.step_pub.publish(Float64(sim_time)),
+                                      1.0 / settings.control_rate)
         self.manager = UavManager(self.view, self.commander, self.nai, self.evaluator, self.recorder,
                                   self.stepping.clock(), lock=self.data.lock)
         self.desk = OrderDesk()
@@ -239,6 +266,7 @@ class UavManagerNode:
             result = RoleResult(ABORTED, f"{action} failed: {error}")
         finally:
             self.stepping.release()
+            self.nai.release()  # a shared ORCA-3D batcher no longer waits for this UAV
         self.manager.hover()
         try:
             self.recorder.set_outcome(result.outcome)

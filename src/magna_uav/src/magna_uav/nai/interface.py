@@ -30,6 +30,11 @@ error (hover); "basic_move" goals, which no network is trained for, fly with ORC
 the command says so (`Command.algorithm` "orca3d"). Relative model paths are taken from
 `model_dir` (default: the working directory).
 
+ORCA-3D's solver (constructor): `solver`, or a ready `orca` navigator (orca.OrcaNavigator), e.g. one
+sharing an OrcaBatcher with the other managers of a process so that one call per control step
+serves them all, with the same answers. `release()` tells the NAI that the control loop stopped
+stepping (a role ended), so a shared batcher does not wait for this UAV.
+
 Heading (constructor: heading "none" | "goal" | "travel", yaw_gain, max_yaw_rate): the yaw
 rate of `simple.heading_rate`, for every algorithm, from its final velocity.
 
@@ -153,13 +158,16 @@ class NavigationInterface:
 
     def __init__(self, max_speed: float, safety_radius: float, solver=None, max_yaw_rate: float = 1.0,
                  heading: str = "goal", yaw_gain: float = 1.0, model_dir: str | Path | None = None,
-                 model_loader: Callable[[Path], NeuralModel] = load_model):
+                 model_loader: Callable[[Path], NeuralModel] = load_model, orca: OrcaNavigator | None = None):
         for name, value in (("max_speed", max_speed), ("safety_radius", safety_radius),
                             ("max_yaw_rate", max_yaw_rate), ("yaw_gain", yaw_gain)):
             if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value) \
                     or value <= 0:
                 raise ValueError(f"NavigationInterface {name} is {value!r}: give a positive finite number "
                                  "(from the UAV's airframe)")
+        if orca is not None and solver is not None:
+            raise ValueError("NavigationInterface takes a solver or an orca navigator, not both: give the solver to "
+                             "the navigator")
         if heading not in HEADING_MODES:
             raise ValueError(f"NavigationInterface heading is {heading!r}: give one of {', '.join(HEADING_MODES)}")
         self.max_speed = float(max_speed)
@@ -169,7 +177,7 @@ class NavigationInterface:
         self.yaw_gain = float(yaw_gain)
         self.model_dir = Path(model_dir) if model_dir is not None else None
         self._load_model = model_loader
-        self._orca = OrcaNavigator(solver)
+        self._orca = orca if orca is not None else OrcaNavigator(solver)
         self._algorithm = "simple"
         self._params: dict[str, dict[str, ParamValue]] = {
             "simple": {"brakingDistance": self.max_speed * DEFAULT_BRAKING_TIME},
@@ -298,6 +306,11 @@ class NavigationInterface:
                              f"{err}") from None
 
     # --- commands -----------------------------------------------------------------------------
+
+    def release(self) -> None:
+        """The control loop stopped stepping (a role ended): nobody sharing ORCA-3D's batcher waits for this UAV
+        until its next ORCA-3D step."""
+        self._orca.release()
 
     def velocity(self, view: WorldView, goal: Goal) -> Command:
         """The command for the UAV `view.own` towards `goal` with the current algorithm (module docstring)."""

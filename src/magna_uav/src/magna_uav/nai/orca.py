@@ -30,7 +30,10 @@ service is absent (the solver's `using_service` is False), one warning goes to t
 
 Managers sharing a process may share an `OrcaBatcher` (orca_batch.py): the navigator then
 hands its problem, built exactly as above, to the batcher with the step's key, and gets the
-same answer from one call made for all of them.
+same answer from one call made for all of them. It joins the batcher at its first ORCA-3D step
+and leaves it on `release()` (the control loop calls it when a role ends), so a UAV that is not
+avoiding with ORCA-3D holds nobody up. A step whose key is None (off the shared tick: a role's
+first step) is solved alone, at once.
 """
 from __future__ import annotations
 
@@ -96,12 +99,14 @@ class OrcaResult:
 class OrcaNavigator:
     """One UAV's ORCA-3D step: select neighbours, build agents, call the solver.
 
-    With a `batcher` (an OrcaBatcher shared with the other managers of the process, which this
-    UAV has joined), the solve goes through it under the key `step_key()` gives, the same for
-    every participant at one control tick; the answer is the same. Without one: the solver.
+    With a `batcher` (an OrcaBatcher shared with the other managers of the process), the solve
+    goes through it under the key `step_key()` gives, the same for every participant at one
+    control tick (None: this step is on no shared tick, solve it alone); the answer is the same.
+    The UAV joins the batcher at its first ORCA-3D step (unless it had joined already) and
+    leaves on `release()`. Without a batcher: the solver.
     """
 
-    def __init__(self, solver=None, batcher=None, step_key: Callable[[], Hashable] | None = None):
+    def __init__(self, solver=None, batcher=None, step_key: Callable[[], Hashable | None] | None = None):
         if batcher is not None and solver is not None:
             raise ValueError("OrcaNavigator takes a solver or a batcher, not both: the batcher has its own solver")
         if batcher is not None and step_key is None:
@@ -110,6 +115,7 @@ class OrcaNavigator:
         self._solver = solver
         self._batcher = batcher
         self._step_key = step_key
+        self._joined: int | None = None  # the UAV id this navigator joined the batcher with
         self._warned = False
 
     @property
@@ -127,7 +133,7 @@ class OrcaNavigator:
         solver = self.solver
         params = dataclasses.replace(params, max_neighbors=len(others))
         if self._batcher is not None and self._step_key is not None:
-            solution = self._batcher.solve(view.own_id, self._step_key(), Problem(me, others, params))
+            solution = self._batched(view.own_id, self._step_key(), Problem(me, others, params))
         else:
             solution = solver.new_velocity(me, others, params)
         if not self._warned and getattr(solver, "using_service", True) is False:
@@ -136,3 +142,20 @@ class OrcaNavigator:
                            "(same answers, slower); start magna_orca_cpp orca3d_server for the fast path",
                            names.ORCA_COMPUTE_VELOCITY, view.own_id)
         return OrcaResult(np.asarray(solution.velocity, dtype=float).reshape(3), bool(solution.feasible), neighbors)
+
+    def _batched(self, uav_id: int, step_key: Hashable | None, problem: Problem) -> Solution:
+        assert self._batcher is not None
+        if self._joined is None and uav_id not in self._batcher.participants:
+            # joined from a role's first ORCA-3D step, so its next one (on the shared tick) is waited for
+            self._batcher.join(uav_id)
+            self._joined = uav_id
+        if step_key is None:
+            return self._batcher.solve_alone(problem)
+        return self._batcher.solve(uav_id, step_key, problem)
+
+    def release(self) -> None:
+        """Leave the batcher (if this navigator joined it): the UAV stops stepping with ORCA-3D for now, and
+        nobody waits for it; its next batched solve joins again. Nothing to do without a batcher."""
+        if self._batcher is not None and self._joined is not None:
+            self._batcher.leave(self._joined)
+            self._joined = None

@@ -20,6 +20,10 @@ idle and not waited for again until it submits. `leave` (in a finally) removes a
 at once. The solver and its fallback order are the single path's (`default_solver`: the
 service, else the numpy reference). A refused or failing many-call is redone problem by
 problem, so only the UAV whose problem was bad gets the error, as on the single path.
+
+`solve_alone` answers a problem outside any round (a step off the shared tick, such as a role's
+first) at once. The solver is used by one thread at a time: its service connection is persistent,
+and a rospy connection must not carry two calls at once.
 """
 from __future__ import annotations
 
@@ -63,6 +67,7 @@ class OrcaBatcher:
         self._solver = solver
         self.straggler_wait = float(straggler_wait)
         self._cond = threading.Condition()
+        self._solver_busy = threading.Lock()  # one call on the solver at a time (rounds of two keys may overlap)
         self._members: set[int] = set()
         self._idle: set[int] = set()  # joined, but missed a step: not waited for until they submit
         self._last_key: dict[int, Hashable] = {}  # each member's latest submitted step key
@@ -156,6 +161,12 @@ class OrcaBatcher:
                 self._cond.notify_all()
         return self._answer(current, uav_id)
 
+    def solve_alone(self, problem: Problem) -> Solution:
+        """`problem` answered by itself, at once, with no round and no join (the single path's call)."""
+        solver = self.solver
+        with self._solver_busy:
+            return solver.new_velocity(problem.agent, problem.neighbors, problem.params)
+
     @staticmethod
     def _answer(finished: _Round, uav_id: int) -> Solution:
         answer = finished.answers.get(uav_id)
@@ -166,6 +177,10 @@ class OrcaBatcher:
         return answer
 
     def _solve_round(self, problems: dict[int, Problem]) -> dict[int, Solution | Exception]:
+        with self._solver_busy:
+            return self._solve_round_now(problems)
+
+    def _solve_round_now(self, problems: dict[int, Problem]) -> dict[int, Solution | Exception]:
         solver = self.solver
         ids = list(problems)
         ordered = [problems[i] for i in ids]
