@@ -161,7 +161,8 @@ class StackServer:
             time_limit=request.time_limit, stop_grace=request.stop_grace, settle=request.settle,
             shutdown_timeout=request.shutdown_timeout,
             known=SimulationResult.from_dict(request.known, "the stack request"), token=request.token,
-            stop_ground_station=_ros_stop_ground_station(), env=env, deaths=self.deaths)
+            stop_ground_station=_ros_stop_ground_station(), env=env, deaths=self.deaths,
+            node=GROUND_STATION_NODE[1:])
         if self.stopping.is_set():
             core.request_stop()
         core.run()

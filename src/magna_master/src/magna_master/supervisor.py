@@ -130,7 +130,7 @@ class SupervisorCore:
                  time_limit: float | None = None, stop_grace: float = 15.0, settle: float = 5.0,
                  shutdown_timeout: float = 10.0, known: SimulationResult | None = None, token: str | None = None,
                  stop_ground_station: Callable[[], bool] | None = None, poll: float = 0.05,
-                 env: dict | None = None, deaths: RequiredDeathWatch | None = None):
+                 env: dict | None = None, deaths: RequiredDeathWatch | None = None, node: str = ""):
         self.command = list(command)
         self.result_path = Path(result_path)
         self.log_path = Path(log_path)
@@ -152,6 +152,9 @@ class SupervisorCore:
         self._started_at = _now()
         self.launch: subprocess.Popen | None = None
         self.env = env  # the command's environment (None: ours)
+        # the node the command is, when it is one node and not a launch (a persistent stack's ground station):
+        # its exit before reporting is that node's death, said as roslaunch says a required node's
+        self.node = node
         # where a required node's death is said: the launch's own log, or a persistent stack's
         self._deaths = deaths if deaths is not None else RequiredDeathWatch(self.log_path)
         self._death: RequiredDeath | None = None  # a required node's death, noticed before any report
@@ -261,6 +264,10 @@ class SupervisorCore:
         """True once the launch log says a required node died before the ground station reported."""
         if self._death is None and self.termination is None:
             death = self._deaths.poll()
+            launch = self.launch
+            if death is None and self.node and launch is not None and launch.poll() is not None:
+                death = RequiredDeath(self.node, f"process has died [pid {launch.pid}, exit code {launch.returncode}]",
+                                      launch.returncode)
             if death is not None:
                 start = self._started if self._started is not None else time.monotonic()
                 self._death_noticed = {"noticed_at": _now(), "noticed_after": round(time.monotonic() - start, 3)}
