@@ -32,6 +32,17 @@ def test_nearest_agents_sorted_by_gap_between_safety_spheres_ties_by_id():
     assert [s.id for s in view.others()] == [2, 3, 4]
 
 
+def test_the_gaps_of_a_swarm_are_the_floats_a_norm_per_uav_gives():
+    # the swarm's gaps are computed in one array operation; a flight must not change by one bit for it
+    rng = np.random.default_rng(7)
+    others = [AgentState(i, rng.normal(size=3) * 40, safety_radius=0.5) for i in range(2, 52)]
+    view = view_with(*others)
+    own = view.own
+    expected = {o.id: float(np.linalg.norm(o.position - own.position)) - o.safety_radius - own.safety_radius
+                for o in others}
+    assert {state.id: gap for state, gap in view.nearest_agents()} == expected
+
+
 def test_a_spherical_obstacle_is_its_bounding_sphere():
     view = view_with(obstacles=[Obstacle("far", np.array([10.0, 0, 1]), 1.0),
                                 Obstacle("near", np.array([0, 2.0, 1]), 1.0)])
