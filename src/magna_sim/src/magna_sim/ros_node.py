@@ -196,6 +196,10 @@ class NodeSettings:
 
 
 INTERFACES = ("ual", "mavlink", "ual+mavlink")
+# While time stands still the UAL topics are re-sent so that late subscribers hear them, at ~pub_rate per wall
+# second but at most this many UAV readings per wall second in all: ten UAVs keep the full rate, a swarm of 50
+# is re-sent at 6 Hz, so its setup (every manager and the ground station connecting) is not drowned in copies.
+PAUSED_READINGS_PER_SECOND = 300.0
 
 
 def _as_bool(name: str, value) -> bool:
@@ -573,7 +577,8 @@ class SimNode:
         if set_own_time is not None:
             set_own_time(stamp)
         self._publish_ual(stamp, tf=False)  # tf listeners complain about repeated stamps
-        deadline = time.monotonic() + 1.0 / self.settings.pub_rate
+        deadline = time.monotonic() + max(1.0 / self.settings.pub_rate,
+                                          len(self.servers) / PAUSED_READINGS_PER_SECOND)
         if self.mavlink and time.monotonic() - self._paused_heartbeat >= 1.0:
             self._paused_heartbeat = time.monotonic()  # clients drop a vehicle silent for a few seconds
             for endpoint, vehicle in self.mavlink.values():
