@@ -168,6 +168,11 @@ class GroundStationServices:
         self.failed_actions = FailedActions()  # every action that ended aborted, with why (the states add them)
         self.liveness = LivenessWatchdog(self._probe_manager)  # the managers' heartbeats
 
+    def running_wall(self) -> float:
+        """A wall clock (s) that stops while we hold the simulator still: a manager's silence while time stands
+        still is no silence (a swarm's setup can keep the first UAVs' managers waiting for minutes)."""
+        return time.monotonic() - self.sim_pause.still_wall_now()
+
     def _probe_manager(self, uav_id: int) -> str | None:
         process = self.managers.get(uav_id)
         if process is None:
@@ -299,7 +304,7 @@ class GroundStationServices:
         self._start_host([c.id for c in agents if self._hosts(c)])
         for config in agents:  # each manager is ready when its action servers answer
             self.clients.get(config.id, "take_off")
-            self.liveness.watch(config.id, rospy.get_time(), time.monotonic())
+            self.liveness.watch(config.id, rospy.get_time(), self.running_wall())
         self._wait_for_the_bag()
         return True
 
@@ -567,10 +572,10 @@ class GroundStation:
         self.critical.publish(String(f"UAV {uav_id} MAVLink link lost: {text}"))
 
     def _on_beat(self, msg: Float64, uav_id: int) -> None:
-        self.services.liveness.heard(uav_id, msg.data, time.monotonic())
+        self.services.liveness.heard(uav_id, msg.data, self.services.running_wall())
 
     def _check_liveness(self, _event) -> None:
-        for lost in self.services.liveness.check(rospy.get_time(), time.monotonic()):
+        for lost in self.services.liveness.check(rospy.get_time(), self.services.running_wall()):
             self._on_manager_lost(lost)
 
     def _on_manager_lost(self, lost: LostManager) -> None:
