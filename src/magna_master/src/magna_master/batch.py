@@ -1,16 +1,22 @@
-"""The batch loop: N simulations of one mission in one world, each on a ROS master of its own.
+"""The batch loop: N simulations of one mission in one world, on one stack kept up across the batch.
 
 What it runs is a BatchConfig (batch_config: the world and mission found and checked by
 magna_gs.inputs, the launch command, the hyperparameters); what it did is a BatchResult
 (batch_summary, with the table `magna run` prints).
 
-Per simulation m (ids from storage.plan_storage, 1..N unless appending):
+Per simulation m (ids from storage.plan_storage, 1..N unless appending), on a warm stack
+(magna_master.stack: a master, the simulator, the world node and ORCA-3D, started by the first
+simulation and reset before each next one): the stack server sets `/magna/hyperparameters`
+(magna_common.records.Hyperparameters: world, subworld, mission, submission, n_dataset,
+n_simulation=m, N_iter, sm_view, save_data, save_bag, rviz, seed=S+m), starts the ground station
+and writes result.json. After anything but a clean report the stack is stopped and the next
+simulation starts a fresh one (StackPolicy).
+
+Cold (--cold-start, --rviz, --fleet, --launch-command, or a stack that could not start or reset):
 
 1. a fresh `RosMaster` on a free port: nothing of the previous simulation (/ual_ids, /clock,
    /use_sim_time, ...) can leak into this one;
-2. the parameter `/magna/hyperparameters` (magna_common.records.Hyperparameters: world, subworld,
-   mission, submission, n_dataset, n_simulation=m, N_iter, sm_view, save_data, save_bag, rviz,
-   seed=S+m);
+2. the parameter `/magna/hyperparameters`, as above;
 3. a supervisor process (`python -m magna_master.supervisor`, see there) that serves
    `/magna/master/simulation_termination`, starts the launch command and writes result.json
    (magna_common.records.SimulationResult);
