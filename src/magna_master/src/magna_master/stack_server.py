@@ -42,7 +42,7 @@ from magna_common.ros_names import (
 )
 from magna_master.launch_watch import RequiredDeathWatch
 from magna_master.stack import READY_TIMEOUT, SimulationReply, SimulationRequest
-from magna_master.supervisor import SupervisorCore, Termination, _ros_stop_ground_station
+from magna_master.supervisor import SupervisorCore, ros_stop_ground_station, termination_of
 
 NODE_NAME = "magna_master_stack"
 GROUND_STATION_NODE = "/ground_station"
@@ -161,7 +161,7 @@ class StackServer:
             time_limit=request.time_limit, stop_grace=request.stop_grace, settle=request.settle,
             shutdown_timeout=request.shutdown_timeout,
             known=SimulationResult.from_dict(request.known, "the stack request"), token=request.token,
-            stop_ground_station=_ros_stop_ground_station(), env=env, deaths=self.deaths,
+            stop_ground_station=ros_stop_ground_station(), env=env, deaths=self.deaths,
             node=GROUND_STATION_NODE[1:])
         if self.stopping.is_set():
             core.request_stop()
@@ -206,14 +206,7 @@ def main(argv=None) -> int:
         core = server.core
         if core is None:  # a ground station of no simulation of ours
             return SimulationTerminationResponse(acknowledged=False)
-        events = tuple({"uav": int(e.uav_id), "event": e.event, "sim_time": round(float(e.sim_time), 3),
-                        "detail": e.detail} for e in request.critical_events)
-        acknowledged = core.on_termination(Termination(
-            success=bool(request.success), outcome=request.outcome, message=request.message,
-            sim_duration=float(request.sim_duration), collisions=int(request.collisions),
-            wall_duration=float(request.wall_duration), setup_wall_duration=float(request.setup_wall_duration),
-            critical_events=events))
-        return SimulationTerminationResponse(acknowledged=acknowledged)
+        return SimulationTerminationResponse(acknowledged=core.on_termination(termination_of(request)))
 
     service = rospy.Service(MASTER_TERMINATION, SimulationTermination, handle)
     try:

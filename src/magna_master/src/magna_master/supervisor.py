@@ -372,7 +372,18 @@ class SupervisorCore:
 
 # --- the ROS node ------------------------------------------------------------------------------------------------
 
-def _ros_stop_ground_station(timeout: float = 5.0) -> Callable[[], bool]:
+def termination_of(request) -> Termination:
+    """The ground station's report, from a magna_msgs/SimulationTermination request."""
+    events = tuple({"uav": int(e.uav_id), "event": e.event, "sim_time": round(float(e.sim_time), 3),
+                    "detail": e.detail} for e in request.critical_events)
+    return Termination(
+        success=bool(request.success), outcome=request.outcome, message=request.message,
+        sim_duration=float(request.sim_duration), collisions=int(request.collisions),
+        wall_duration=float(request.wall_duration), setup_wall_duration=float(request.setup_wall_duration),
+        critical_events=events)
+
+
+def ros_stop_ground_station(timeout: float = 5.0) -> Callable[[], bool]:
     def stop() -> bool:
         import rosgraph
         import rospy
@@ -432,7 +443,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                           time_limit=args.time_limit, stop_grace=args.stop_grace, settle=args.settle,
                           shutdown_timeout=args.shutdown_timeout,
                           known=SimulationResult.from_dict(args.extra, "--extra"),
-                          token=os.environ.get(TOKEN_ENV), stop_ground_station=_ros_stop_ground_station())
+                          token=os.environ.get(TOKEN_ENV), stop_ground_station=ros_stop_ground_station())
     for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         signal.signal(sig, lambda *_: core.request_stop())
     if args.parent_pid:
@@ -446,14 +457,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     rospy.init_node(NODE_NAME, disable_signals=True)
 
     def handle(request):
-        events = tuple({"uav": int(e.uav_id), "event": e.event, "sim_time": round(float(e.sim_time), 3),
-                        "detail": e.detail} for e in request.critical_events)
-        acknowledged = core.on_termination(Termination(
-            success=bool(request.success), outcome=request.outcome, message=request.message,
-            sim_duration=float(request.sim_duration), collisions=int(request.collisions),
-            wall_duration=float(request.wall_duration), setup_wall_duration=float(request.setup_wall_duration),
-            critical_events=events))
-        return SimulationTerminationResponse(acknowledged=acknowledged)
+        return SimulationTerminationResponse(acknowledged=core.on_termination(termination_of(request)))
 
     service = rospy.Service(MASTER_TERMINATION, SimulationTermination, handle)
     try:
