@@ -217,7 +217,7 @@ def test_hyperparameters_and_the_default_launch_command(batch_inputs):
     assert argv[5:] == [f"mission_file:={batch_inputs.mission_file}", "world:=Gym", "subworld:=1Obs_Central_Cylinder",
                         f"worlds_path:={batch_inputs.world_file.parent.parent}",
                         "data_dir:=/data/dataset_2/simulation_3", "rtf:=max", "seed:=13", "bag:=false",
-                        "save_data:=true", "output:=log", "button_timeout:=10"]
+                        "save_data:=true", "output:=log", "button_timeout:=10", "managers:=host"]
     no_data = storage.StoragePlan(None, [1], reason="off")
     argv = launch_command(config, 1, None, no_data)
     assert "data_dir:=" in argv and "save_data:=false" in argv and "bag:=false" in argv
