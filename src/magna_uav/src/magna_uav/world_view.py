@@ -139,8 +139,9 @@ class WorldView:
         others = list(self.others())
         if not others:
             return []
-        # One array operation for the swarm instead of a norm per UAV (the managers of 50 UAVs ask every step);
-        # the sums run in np.linalg.norm's order, so each distance is the same float to the last bit.
+        # One array operation for the swarm instead of a norm per UAV (the managers of 50 UAVs ask every step).
+        # Elementwise and in a fixed order, (x*x + y*y) + z*z, so each distance is the same float on every
+        # machine; np.linalg.norm's dot product depends on the CPU's BLAS kernel in its last bit.
         d = np.array([o.position for o in others], dtype=float) - own.position
         distances = np.sqrt((d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]) + d[:, 2] * d[:, 2])
         gaps = [(float(distance) - o.safety_radius - own.safety_radius, o.id, o)
