@@ -99,6 +99,45 @@ def test_take_off_and_land_follow_the_ual_states():
     assert uavs[0].state == LANDED_ARMED
 
 
+def test_a_take_off_answered_late_is_given_its_time_from_the_answer():
+    # The UAL's service answers 6 simulated s after the request (a busy ROS master while simulated
+    # time runs on), and the UAV's state shows the take-off only a control step after the answer, as
+    # the UAL's state topic does. Counted from the request, the 5 s the UAL has to show TAKING_OFF
+    # would be over at the first look after the answer.
+    manager, world, uavs, recorder, config = setup([[0, 0, 0]])
+    answer_after = 6.0
+    take_off_now, sleep_now = uavs[0].take_off, world.sleep
+    pending = {"height": 0.0, "sleeps": 0}  # the take-off starts after this many more sleeps
+
+    def slow_take_off(height):
+        for _ in range(int(answer_after / world.dt)):
+            world.t += world.dt  # simulated time passes while the call waits; the UAV stays landed
+        world.publish()
+        pending.update(height=height, sleeps=2)
+
+    def sleep():
+        if pending["sleeps"]:
+            pending["sleeps"] -= 1
+            if not pending["sleeps"]:
+                take_off_now(pending["height"])
+        sleep_now()
+
+    uavs[0].take_off, world.sleep = slow_take_off, sleep
+    manager.clock = Clock(world.now, sleep)
+    result = fly(manager, TakeOffRole(2.0))
+    assert result.outcome == "succeeded", result.message
+    assert uavs[0].state == FLYING_AUTO
+    assert world.t > answer_after
+
+
+def test_a_take_off_the_ual_never_shows_still_fails_after_its_time():
+    manager, world, uavs, recorder, config = setup([[0, 0, 0]])
+    uavs[0].take_off = lambda height: uavs[0].calls.append("take_off")  # accepted, and nothing happens
+    result = fly(manager, TakeOffRole(2.0))
+    assert result.outcome == "aborted"
+    assert "still reports LANDED_ARMED 5.0 s after it accepted the take-off" in result.message
+
+
 def test_evaluator_stops_the_role_on_collision_and_the_uav_hovers():
     # UAV 2 hovers on the path; simple guidance flies straight through it.
     manager, world, uavs, recorder, config = with_uav_2_hovering_at([5.0, 0.0, 3.0])

@@ -127,6 +127,8 @@ class UavManager:
                     step = role.step(self.view, now)
                     try:
                         chosen, algorithm, feasible = self._execute(step, now)
+                        if step.action in (TAKE_OFF, LAND):  # the UAL's time to show it runs from its answer
+                            role.ual_answered(self.clock.now())
                     except CommandRefused as refusal:  # never a success: the action ends aborted, saying why
                         step.outcome, step.message = ABORTED, f"{role.name}: UAL refused: {refusal}"
                         self._hover()

@@ -93,9 +93,14 @@ class UalManoeuvre:
                  blocked_from: str):
         self.noun, self.during, self.before, self.interrupting = noun, during, before, interrupting
         self.blocked_from = blocked_from
-        self.asked_at = 0.0
+        self.asked_at = 0.0  # the role's elapsed time when it asked; moved to the answer's by `answered`
         self.accepted = False  # the UAL showed `during` since it was asked
         self.stall = Stall()
+
+    def answered(self, elapsed: float) -> None:
+        """The UAL's service answered at `elapsed`: its time to show the manoeuvre counts from here. A call
+        that took long (a busy ROS master, a loaded machine) while simulated time ran on must not eat it."""
+        self.asked_at = max(self.asked_at, elapsed)
 
     def failure(self, state: int, z: float, elapsed: float, distance_left: float, stuck: Callable[[float], str]) -> str:
         self.accepted = self.accepted or state == self.during
@@ -139,6 +144,9 @@ class Role(ABC):
     def timed_out(self, elapsed: float) -> bool:
         return self.duration > 0 and elapsed >= self.duration
 
+    def ual_answered(self, now: float) -> None:  # noqa: B027 -- a hook: only the manoeuvring roles need it
+        """The UAL's service answered this role's last request (a take-off, a landing) at simulated time `now`."""
+
     @abstractmethod
     def _step(self, view: WorldView, now: float, elapsed: float) -> RoleStep: ...
 
@@ -159,6 +167,10 @@ class TakeOffRole(Role):
         self.height, self.tolerance = float(height), tolerance
         self.target_z: float | None = None
         self.manoeuvre = UalManoeuvre("take-off", TAKING_OFF, LANDED, (LANDING, UNINITIALIZED), "above")
+
+    def ual_answered(self, now: float) -> None:
+        if self.started is not None:
+            self.manoeuvre.answered(now - self.started)
 
     def _step(self, view, now, elapsed):
         own = view.own
@@ -201,6 +213,10 @@ class LandRole(Role):
         super().__init__(duration)
         self.asked = False
         self.manoeuvre = UalManoeuvre("landing", LANDING, (FLYING_AUTO,), (TAKING_OFF, UNINITIALIZED), "under")
+
+    def ual_answered(self, now: float) -> None:
+        if self.started is not None:
+            self.manoeuvre.answered(now - self.started)
 
     def _step(self, view, now, elapsed):
         own = view.own
