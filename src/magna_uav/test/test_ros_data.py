@@ -2,6 +2,7 @@
 import json
 import math
 import struct
+import threading
 
 import numpy as np
 import pytest
@@ -17,6 +18,7 @@ from magna_common import ros_names as names
 from magna_uav.ros_data import (
     ObstacleMarkers,
     SwarmFeed,
+    ViewLock,
     WorldUpdater,
     depth_image,
     marker_obstacle,
@@ -353,6 +355,53 @@ def test_one_swarm_feed_subscribes_once_and_feeds_every_view_its_own_uavs():
                                  f"angular velocities; each array needs one entry per id"]
     feed.close()
     assert not made[0].open and feed.members == 0
+
+
+def test_a_busy_view_does_not_hold_the_swarm_back_from_the_others():
+    # Manager 1 is inside a long step (a UAL call) and holds its view's lock; the feed's one thread must
+    # still hand the message to manager 2 at once, and manager 1 gets it when its next step takes the lock.
+    feed = SwarmFeed(subscribe=lambda topic, callback: None, clock=lambda: 5.0)
+    radii = {1: 0.3, 2: 0.3, 3: 0.3}
+    views = {i: WorldUpdater(WorldView(i), [1, 2, 3], radii) for i in (1, 2)}
+    for i, updater in views.items():
+        feed.join(updater, [j for j in (1, 2, 3) if j != i])
+    delivered = threading.Event()
+    with views[1].lock:  # manager 1's step
+        thread = threading.Thread(target=lambda: (feed.deliver(swarm_of({j: odom(j, 0, 0, (0, 0, 0))
+                                                                          for j in (1, 2, 3)}, 2.0)),
+                                                  delivered.set()))
+        thread.start()
+        assert delivered.wait(10), "the feed waited for a busy manager"
+        assert views[2].view.agent(1).position[0] == 1  # the other manager has it now
+        assert views[1].view.agent(2) is None  # not under the busy step's feet
+        feed.deliver(swarm_of({j: odom(10 * j, 0, 0, (0, 0, 0)) for j in (1, 2, 3)}, 3.0))  # a newer one
+    thread.join()
+    with views[1].lock:  # the next step: the newest message only
+        assert views[1].view.agent(2).position[0] == 20 and views[1].view.agent(3).position[0] == 30
+        assert views[1].view.agent(2).stamp == 3.0
+
+
+def test_a_message_left_waiting_runs_at_the_next_entry_unless_a_newer_one_ran_first():
+    lock, applied = ViewLock(), []
+    with lock:
+        assert lock.apply_or_leave(lambda: applied.append("old")) is False
+    assert applied == []  # left for the next holder
+    assert lock.apply_or_leave(lambda: applied.append("new")) is True  # free: runs now, and drops "old"
+    with lock:
+        assert applied == ["new"]
+        lock.apply_or_leave(lambda: applied.append("later"))
+    with lock:
+        assert applied == ["new", "later"]  # run on entry, before the holder reads anything
+
+
+def test_a_waiting_message_that_fails_leaves_the_lock_free():
+    lock = ViewLock()
+    with lock:
+        lock.apply_or_leave(lambda: 1 / 0)
+    with pytest.raises(ZeroDivisionError):
+        with lock:
+            pass
+    assert lock.apply_or_leave(lambda: None) is True  # not left held
 
 
 def test_markers_fill_the_views_obstacles():

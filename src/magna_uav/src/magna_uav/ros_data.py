@@ -30,7 +30,9 @@ view never holds a UAV at a made-up position.
 
 Threads: rospy runs each subscription's callbacks in a thread of its own; every update
 takes `lock` and replaces whole AgentState objects, and the control loop holds the same
-lock while it reads the view (`with data.lock: evaluator.step(view)`).
+lock while it reads the view (`with data.lock: evaluator.step(view)`). The swarm's state alone never
+waits for that lock: one thread hands it to every manager of a host, so a manager busy in its step gets it
+when its next step takes the lock (ViewLock).
 
 The message handling (`WorldUpdater`, `ObstacleMarkers`) needs no ROS master, only the
 message classes; `RosWorldData` adds the subscriptions.
@@ -266,6 +268,53 @@ def _stamp_ns(msg, now: float) -> int:
     return int(stamp.secs) * 10**9 + int(stamp.nsecs) or max(1, round(now * 1e9))
 
 
+class ViewLock:
+    """The lock of one view, with a one-message mailbox for whoever must not wait for it.
+
+    `with lock:` as a threading.Lock. A control step holds it for the whole step, UAL service calls
+    included, which can take a while. The swarm's state comes on one subscription for every manager
+    of a host, one member after the other: waiting for one busy manager would hold back the others'
+    views (stale poses, ORCA-3D flying on them). `apply_or_leave(apply)` therefore runs `apply` under
+    the lock only when it is free; else it leaves `apply` for the next holder, which runs it on
+    taking the lock, before reading anything. A newer message replaces one left waiting, and one
+    applied at once drops it: the messages come in order, so only the newest counts.
+    """
+
+    def __init__(self):
+        self._lock = threading.Lock()
+        self._mailbox = threading.Lock()  # taken briefly, never while waiting for `_lock`
+        self._waiting: Callable[[], None] | None = None
+
+    def __enter__(self) -> ViewLock:
+        self._lock.acquire()
+        with self._mailbox:
+            waiting, self._waiting = self._waiting, None
+        if waiting is not None:
+            try:
+                waiting()
+            except BaseException:
+                self._lock.release()
+                raise
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._lock.release()
+
+    def apply_or_leave(self, apply: Callable[[], None]) -> bool:
+        """True when `apply` ran now; False when it was left for the lock's next holder."""
+        if not self._lock.acquire(blocking=False):
+            with self._mailbox:
+                self._waiting = apply
+            return False
+        try:
+            with self._mailbox:
+                self._waiting = None  # older than `apply`
+            apply()
+        finally:
+            self._lock.release()
+        return True
+
+
 class WorldUpdater:
     """Turns UAL, battery, depth and marker messages into WorldView updates, under `lock`."""
 
@@ -277,7 +326,7 @@ class WorldUpdater:
             raise ValueError(f"safety_radii: no safety radius for UAV {', '.join(map(str, missing))}; give one per "
                              f"agent id (the airframe's safety_radius, e.g. UavConfig.safety_radius)")
         self.agent_ids = ids
-        self.lock = threading.Lock()
+        self.lock = ViewLock()
         self._records = {i: AgentState(id=i, safety_radius=float(safety_radii[i])) for i in ids}
         self._posed: set[int] = set()
         self.markers = ObstacleMarkers()
@@ -323,7 +372,8 @@ class WorldUpdater:
         wanted = self._records.keys() if only is None else set(only) & self._records.keys()
         stamp = msg.header.stamp.to_sec() or now
         stamp_ns = _stamp_ns(msg, now)
-        with self.lock:  # the whole swarm at once: a control step never sees half of one instant
+
+        def apply() -> None:  # the whole swarm at once: a control step never sees half of one instant
             for index, agent_id in enumerate(msg.ids):
                 if agent_id not in wanted:
                     continue
@@ -333,6 +383,8 @@ class WorldUpdater:
                                   velocity=(linear.x, linear.y, linear.z),
                                   yaw_rate=float(msg.angular_velocities[index].z), stamp=stamp,
                                   pose_stamp_ns=stamp_ns, velocity_stamp_ns=stamp_ns, pose=True)
+
+        self.lock.apply_or_leave(apply)  # a manager busy in its step takes it when its next step begins
 
     def on_state(self, agent_id: int, msg: State) -> None:
         self._update(agent_id, ual_state=int(msg.state))
