@@ -28,7 +28,8 @@ side in one run:
       --physics-seconds), and the stack's share of the wall time while flying, 1 - flight / physics.
   Overheads: over a batch of --overhead-batch two-UAV simulations (default 20), the mean and the max of
       window - mission and e2e - window; and report.html's time per simulation, measured apart (written
-      again for a few of them; `magna run` writes it after each progress line, so it falls in e2e).
+      again for a few of them; `magna run` draws it in a worker thread while the next simulation runs,
+      so only the last one's falls in e2e, and the others take their share of the cores).
   (b) the wall time of one `magna run` of --simulations (default 80) of the default mission, the
       average per simulation, and how many ran on a warm stack or started cold (result.json's
       stack.start; a result without it ran on the cold path).

@@ -220,6 +220,7 @@ def check_fleet(mission_file: Path, fleet_file: Path | None, rtf: str) -> tuple[
 def run(args) -> int:
     from magna_master.batch import run_batch
     from magna_master.batch_summary import format_summary
+    from magna_master.reports import Reports
     from magna_master.storage import ask_policy
 
     config = build_config(args)  # bad input: a UserError, which `magna` prints (exit status 2)
@@ -227,6 +228,8 @@ def run(args) -> int:
     reports = None if args.no_report or not config.save_data else Reports()
     result = run_batch(config, ask=ask, on_simulation=reports)
     print(format_summary(result), flush=True)
+    if reports is not None:
+        reports.wait()  # the last reports are drawn in a worker thread, and pyplot is for one thread at a time
     saved = result.dataset_dir if result.dataset_dir is not None and result.dataset_dir.is_dir() else None
     if saved is not None and not result.interrupted and not result.storage_error:
         pictures = draw_pictures(config, saved)
@@ -237,39 +240,6 @@ def run(args) -> int:
     if result.interrupted:
         return 130
     return 1 if result.failed_to_run or result.storage_error else 0
-
-
-class Reports:
-    """Writes each simulation's report.html as the batch goes (magna_viz.report), then the dataset's index.
-
-    A report is a view of the data: when one cannot be drawn the batch goes on and says why.
-    """
-
-    def __init__(self):
-        self.written: list[Path] = []
-
-    def __call__(self, result) -> None:
-        if result.directory is None or result.interrupted:
-            return
-        from magna_viz.report import write_report
-
-        try:
-            self.written.append(write_report(result.directory, overwrite=True).path)
-        except Exception as error:  # the simulation's data is safe; only its page is missing
-            print(f"magna run: simulation {result.id}: no report: {error}; try `magna report "
-                  f"{result.directory}`", file=sys.stderr, flush=True)
-
-    def finish(self, dataset_dir: Path) -> None:
-        from magna_viz.index import write_index
-
-        try:
-            index = write_index(dataset_dir)
-        except Exception as error:  # as above
-            print(f"magna run: no index page: {error}; try `magna report {dataset_dir}`", file=sys.stderr)
-            return
-        if self.written:
-            print(f"report:  {self.written[-1]} (the last simulation's)", flush=True)
-        print(f"index:   {index} (every simulation, linked to its report)", flush=True)
 
 
 def draw_pictures(config, folder: Path) -> list[Path]:
