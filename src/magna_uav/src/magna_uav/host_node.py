@@ -2,14 +2,11 @@
 from __future__ import annotations
 
 import argparse
-import logging
-import os
-import sys
-import threading
 
 import rospy
 from std_msgs.msg import UInt32MultiArray
 
+from magna_common.ros_exit import leave_now
 from magna_uav.host import ENDED_TOPIC, ManagerHost, host_ids, manager_node_name, private_params
 from magna_uav.nai.orca_batch import OrcaBatcher
 from magna_uav.ros_data import SwarmFeed
@@ -54,45 +51,6 @@ def hosted_settings(ids: list[int]) -> dict[int, Settings]:
     return settings
 
 
-def unregister_the_rest(timeout: float = 2.0) -> None:
-    """Tell the master this node's remaining topics and services are gone (rospy's /rosout, /clock ...): what its
-    shutdown would do, without the second it spends joining threads. Bounded: a master that does not answer
-    within `timeout` s is left as a killed node would leave it."""
-    import rosgraph
-    from rospy.impl.registration import get_service_manager, get_topic_manager
-
-    master, uri = rosgraph.Master(rospy.get_name()), rospy.core.get_node_uri()
-    topics = get_topic_manager()
-
-    def unregister() -> None:
-        try:
-            for name, _ in topics.get_subscriptions():
-                master.unregisterSubscriber(name, uri)
-            for name, _ in topics.get_publications():
-                master.unregisterPublisher(name, uri)
-            for name, service_uri in get_service_manager().get_services():
-                master.unregisterService(name, service_uri)
-        except Exception as error:  # noqa: BLE001 -- the master may be gone already; nothing left to tell it
-            rospy.logdebug(f"uav_manager_host: unregistering at exit: {error!r}")
-
-    worker = threading.Thread(target=unregister, daemon=True, name="unregister at exit")
-    worker.start()
-    worker.join(timeout)
-
-
-def flush_logs() -> None:
-    """Flush every logging handler (the node's log file) without closing them: nothing is lost at os._exit."""
-    for handler in list(logging._handlerList):  # type: ignore[attr-defined]  # what logging.shutdown walks
-        target = handler()
-        if target is not None:
-            try:
-                target.flush()
-            except (OSError, ValueError):
-                pass
-    sys.stdout.flush()
-    sys.stderr.flush()
-
-
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="rosrun magna_uav uav_manager_host", description=HELP,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -129,6 +87,5 @@ def main(argv=None) -> int:
     swarm.close()
     ended_pub.unregister()
     rospy.loginfo(f"uav_manager_host: the managers of UAVs {ids} have all ended; exiting")
-    unregister_the_rest()
-    flush_logs()
-    os._exit(0)
+    leave_now(0)
+    return 0  # not reached
