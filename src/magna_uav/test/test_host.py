@@ -3,7 +3,15 @@ import threading
 
 import pytest
 
-from magna_uav.host import ManagerHost, describe_hosted, ended_topic, host_ids, manager_node_name, private_params
+from magna_uav.host import (
+    ManagerHost,
+    describe_hosted,
+    ended_topic,
+    host_groups,
+    host_ids,
+    manager_node_name,
+    private_params,
+)
 from magna_uav.settings import SettingsError, read_settings
 from tests.support import wait_until
 
@@ -118,3 +126,17 @@ def test_a_hosted_manager_is_described_by_its_host_then_by_its_thread():
     assert describe_hosted(2, "killed by SIGKILL", [2]) == "its manager host killed by SIGKILL"
     assert describe_hosted(1, "stopped (frozen: SIGSTOP or a debugger)", []) == (
         "its manager host stopped (frozen: SIGSTOP or a debugger)")
+
+
+def test_managers_are_shared_out_evenly_among_as_few_hosts_as_the_limit_allows():
+    assert host_groups([2, 1], 10) == [("uav_manager_host", [1, 2])]
+    assert host_groups(range(1, 11), 0) == [("uav_manager_host", list(range(1, 11)))]  # 0: one host
+    assert host_groups(range(1, 13), 10) == [("uav_manager_host_1", [1, 2, 3, 4, 5, 6]),
+                                            ("uav_manager_host_2", [7, 8, 9, 10, 11, 12])]
+    groups = host_groups(range(1, 51), 12)
+    assert [len(g) for _, g in groups] == [10, 10, 10, 10, 10]
+    assert sorted(i for _, g in groups for i in g) == list(range(1, 51))
+    assert [name for name, _ in groups] == [f"uav_manager_host_{k}" for k in range(1, 6)]
+    assert host_groups([], 10) == []
+    with pytest.raises(ValueError, match="managers_per_host is -1"):
+        host_groups([1], -1)

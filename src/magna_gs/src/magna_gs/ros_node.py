@@ -75,7 +75,7 @@ from magna_gs.utm_client import UtmLink
 from magna_gs.verdict import FailedActions, judge_actions
 from magna_mavlink.fleet import FleetError, check_against_mission, load_fleet, mavlink_uavs
 from magna_sm.introspection import IntrospectionServer
-from magna_uav.host import describe_hosted, ended_topic, manager_node_name
+from magna_uav.host import describe_hosted, ended_topic, host_groups, manager_node_name
 
 HELP = """\
 The ground station: runs one mission (ROS-MAGNA mission JSON, current or legacy schema).
@@ -83,8 +83,8 @@ The ground station: runs one mission (ROS-MAGNA mission JSON, current or legacy 
 Needs magna_sim, the world node (magna_worlds) and, for ORCA-3D, orca3d_server running;
 `roslaunch magna_gs simulation.launch mission_file:=... world:=... subworld:=...` starts
 them all. UAV managers are started by the mission's spawn_agents state: with ~managers host (the
-default), one process (rosrun magna_uav uav_manager_host) runs the managers of every UAV whose
-agent_manager_on_gs is true, a thread each, and a UAV with it false gets a standalone uav_manager
+default), host processes (rosrun magna_uav uav_manager_host, ~managers_per_host each) run the managers
+of every UAV whose agent_manager_on_gs is true, a thread each, and a UAV with it false gets a standalone uav_manager
 (its companion computer's case); with ~managers process every UAV gets a standalone uav_manager.
 
 Services: /magna/gs/state_actualization (StateActualization, from the UAV managers)
@@ -95,7 +95,7 @@ Services: /magna/gs/state_actualization (StateActualization, from the UAV manage
 Topics:   /magna/gs/critical_event (std_msgs/String) to every UAV manager
           /magna/uav_{id}/alive (std_msgs/Float64) from each manager: its heartbeat. A manager silent
           for 0.6 simulated s whose process is gone or stopped, or whose host's thread has ended
-          (/uav_manager_host/ended), is lost (magna_common.liveness): a critical event names it, and its
+          (/uav_manager_host[_k]/ended), is lost (magna_common.liveness): a critical event names it, and its
           goals end at once (see magna_gs's README)
 Machine:  /magna/sm/mission/structure|status (magna_sm introspection)
 At the end: /magna/master/simulation_termination (SimulationTermination) when a Master serves it,
@@ -108,8 +108,10 @@ Private parameters (defaults):
   ~bag (true)                record simulation.bag (tf, markers, UAV poses, the machine's status)
   ~control_rate (10.0)       control rate of the UAV managers it starts
   ~manager_output (log)      where the managers' output goes: log or screen
-  ~managers (host)           host: the managers of the UAVs with agent_manager_on_gs in one process, a
+  ~managers (host)           host: the managers of the UAVs with agent_manager_on_gs in host processes, a
                              thread each; process: one process per manager
+  ~managers_per_host (10)    at most this many managers per host process, shared out evenly (50 UAVs: five
+                             hosts uav_manager_host_1..5 of 10; up to 10: one, uav_manager_host); 0: one host
   ~button_timeout (0)        s of sim time after which a wait for the operator's button goes on; 0: never
   ~utm_plan ("")             a UTM plan file (JSON); with it, or when the mission flies "from utm", the
                              ground station starts the UTM node (rosrun magna_gs utm)
@@ -123,7 +125,9 @@ Private parameters (defaults):
 SUCCESS_OUTCOMES = ("completed", "succeeded", "success", "mission_completed", "finished")
 BAG_WAIT = 15.0  # wall seconds for the bag to connect to the UAVs' topics
 MANAGER_MODES = ("host", "process")
-HOST_NAME = "uav_manager_host"  # the node name of the manager host the ground station starts
+# Managers per host process: a host's managers share one Python interpreter's lock, so a big swarm's are
+# split among several hosts, which the OS runs on every core.
+DEFAULT_MANAGERS_PER_HOST = 10
 
 
 def clear_private_params(node_name: str) -> None:
@@ -139,11 +143,14 @@ class GroundStationServices:
 
     def __init__(self, mission, mission_file: Path, data_dir: Path | None, save_data: bool, control_rate: float,
                  manager_output: str, button_timeout: float = 0.0, bag: BagRecorder | None = None,
-                 managers: str = "host"):
+                 managers: str = "host", managers_per_host: int = DEFAULT_MANAGERS_PER_HOST):
         if managers not in MANAGER_MODES:
             raise MissionError(f"~managers is {managers!r}: give host (the managers of the ground station's UAVs in "
                                f"one process) or process (one process each)")
-        self.manager_mode = managers
+        if managers_per_host < 0:
+            raise MissionError(f"~managers_per_host is {managers_per_host}: give a positive number of managers per "
+                               f"host process (0: all in one)")
+        self.manager_mode, self.managers_per_host = managers, managers_per_host
         self.mission, self.mission_file = mission, mission_file
         self.data_dir, self.save_data = data_dir, save_data
         self.control_rate, self.manager_output = control_rate, manager_output
@@ -155,9 +162,9 @@ class GroundStationServices:
         self.world_parts: list[str] = []
         self.spawned: list[int] = []
         self.managers: dict[int, subprocess.Popen] = {}  # each UAV's manager process (a host's is shared)
-        self.hosted: set[int] = set()  # the UAVs whose manager runs in the host
-        self.host_ended: set[int] = set()  # hosted managers whose thread has ended, as the host says
-        self._host_ended_sub: rospy.Subscriber | None = None
+        self.hosted: set[int] = set()  # the UAVs whose manager runs in a host
+        self._ended_in: dict[str, set[int]] = {}  # by host: its managers whose thread has ended, as it says
+        self._host_ended_subs: list[rospy.Subscriber] = []
         self.configs = {c.id: c for c in mission.agents}
         self.sim_pause = SimulationPause()
         self.bag = bag
@@ -172,6 +179,11 @@ class GroundStationServices:
         """A wall clock (s) that stops while we hold the simulator still: a manager's silence while time stands
         still is no silence (a swarm's setup can keep the first UAVs' managers waiting for minutes)."""
         return time.monotonic() - self.sim_pause.still_wall_now()
+
+    @property
+    def host_ended(self) -> set[int]:
+        """Hosted managers whose thread has ended, as their hosts say."""
+        return set().union(*self._ended_in.values())
 
     def _probe_manager(self, uav_id: int) -> str | None:
         process = self.managers.get(uav_id)
@@ -365,28 +377,30 @@ class GroundStationServices:
         self.managers[uav_id] = subprocess.Popen(command, start_new_session=True, stdout=output, stderr=output)
 
     def _start_host(self, ids: list[int]) -> None:
-        """One process for the managers of `ids`, each reading the parameters its standalone node would have."""
-        if not ids:
-            return
-        clear_private_params(HOST_NAME)
-        for uav_id in ids:
-            node = manager_node_name(uav_id)
-            clear_private_params(node)
-            for key, value in self._manager_params(uav_id).items():
-                rospy.set_param(f"/{node}/{key}", value)
-        rospy.set_param(f"/{HOST_NAME}/ids", list(ids))
-        self.hosted = set(ids)
-        self.host_ended = set()
-        self._host_ended_sub = rospy.Subscriber(ended_topic(HOST_NAME), UInt32MultiArray, self._on_host_ended,
-                                                queue_size=10)
-        output = self._child_output()
-        host = subprocess.Popen(["rosrun", "magna_uav", "uav_manager_host", f"__name:={HOST_NAME}"],
-                                start_new_session=True, stdout=output, stderr=output)
-        for uav_id in ids:
-            self.managers[uav_id] = host
+        """Processes for the managers of `ids` (~managers_per_host each), each manager reading the parameters its
+        standalone node would have."""
+        for host_name, group in host_groups(ids, self.managers_per_host):
+            clear_private_params(host_name)
+            for uav_id in group:
+                node = manager_node_name(uav_id)
+                clear_private_params(node)
+                for key, value in self._manager_params(uav_id).items():
+                    rospy.set_param(f"/{node}/{key}", value)
+            rospy.set_param(f"/{host_name}/ids", list(group))
+            self.hosted |= set(group)
+            self._ended_in[host_name] = set()
+            self._host_ended_subs.append(rospy.Subscriber(ended_topic(host_name), UInt32MultiArray,
+                                                          self._on_host_ended, callback_args=(host_name, set(group)),
+                                                          queue_size=10))
+            output = self._child_output()
+            host = subprocess.Popen(["rosrun", "magna_uav", "uav_manager_host", f"__name:={host_name}"],
+                                    start_new_session=True, stdout=output, stderr=output)
+            for uav_id in group:
+                self.managers[uav_id] = host
 
-    def _on_host_ended(self, msg: UInt32MultiArray) -> None:
-        self.host_ended = {int(i) for i in msg.data} & self.hosted
+    def _on_host_ended(self, msg: UInt32MultiArray, host: tuple[str, set[int]]) -> None:
+        name, group = host
+        self._ended_in[name] = {int(i) for i in msg.data} & group
 
     def start_utm(self, plan_file: str) -> None:
         """The UTM node for this mission, and the link that hears its plans."""
@@ -446,10 +460,11 @@ class GroundStationServices:
     # --- the end --------------------------------------------------------------------------
     def stop_managers(self, grace: float = 10.0) -> None:
         self.liveness.stop()  # they stop on purpose now
-        host_lost = bool(self.hosted) and all(self.lost_manager(uav_id) is not None for uav_id in self.hosted)
+        lost_ids = {uav_id for uav_id in self.managers if self.lost_manager(uav_id) is not None}
         ended: set[int] = set()  # processes ended here (a host's pid once)
         for uav_id, process in list(self.managers.items()):
-            lost = self.lost_manager(uav_id) is not None
+            lost = uav_id in lost_ids
+            host_lost = all(u in lost_ids for u, p in self.managers.items() if p is process)
             if lost and uav_id in self.hosted and not host_lost:  # its thread has ended; the others run on
                 continue
             if lost:  # dead or frozen (a host whose managers are all lost, the same): nothing to ask it
@@ -469,9 +484,9 @@ class GroundStationServices:
             except subprocess.TimeoutExpired:
                 end_process_group(process)
         self.managers.clear()
-        if self._host_ended_sub is not None:
-            self._host_ended_sub.unregister()
-            self._host_ended_sub = None
+        for subscriber in self._host_ended_subs:
+            subscriber.unregister()
+        self._host_ended_subs = []
         self.clients.stop()
 
     def delete_uavs(self) -> None:
@@ -513,7 +528,8 @@ class GroundStation:
                                               float(rospy.get_param("~control_rate", 10.0)),
                                               rospy.get_param("~manager_output", "log"),
                                               float(rospy.get_param("~button_timeout", 0.0)), self.bag,
-                                              str(rospy.get_param("~managers", "host")))
+                                              str(rospy.get_param("~managers", "host")),
+                                              int(rospy.get_param("~managers_per_host", DEFAULT_MANAGERS_PER_HOST)))
         # What a link-lost callback of the fleet's bridges touches exists before the fleet is loaded.
         self.statuses: dict[int, dict] = {c.id: {} for c in self.mission.agents}
         self.critical_events: list[CriticalEvent] = []

@@ -24,6 +24,31 @@ def ended_topic(host_name: str) -> str:
     return f"/{host_name.strip('/')}/{ENDED_TOPIC}"
 
 
+HOST_NODE = "uav_manager_host"  # the node name of a ground station's (first) manager host
+
+
+def host_groups(ids: Iterable[int], per_host: int) -> list[tuple[str, list[int]]]:
+    """The manager hosts that run the managers of `ids`, at most `per_host` each and as even as can be, in id
+    order: (node name, ids).
+
+    One host is named uav_manager_host; more are uav_manager_host_1, _2, ... Each host is a process of its
+    own, so the managers of a big swarm share the cores instead of one Python interpreter's lock.
+    per_host 0 puts them all in one host."""
+    ids = sorted(int(i) for i in ids)
+    if per_host < 0:
+        raise ValueError(f"managers_per_host is {per_host}: give a positive number of managers per host "
+                         f"(0: all in one host)")
+    if not ids:
+        return []
+    count = -(-len(ids) // (per_host or len(ids)))  # as few hosts as `per_host` allows, evened out
+    base, extra = divmod(len(ids), count)
+    bounds = [k * base + min(k, extra) for k in range(count + 1)]
+    chunks = [ids[bounds[k]:bounds[k + 1]] for k in range(count)]
+    if len(chunks) == 1:
+        return [(HOST_NODE, chunks[0])]
+    return [(f"{HOST_NODE}_{k}", chunk) for k, chunk in enumerate(chunks, start=1)]
+
+
 def private_params(node_name: str, get_param: Callable[..., object]) -> Callable[[str, object], object]:
     """A `param(name, default)` for magna_uav.settings.read_settings that reads `~x` as the node `node_name` would:
     `/node_name/x`, through `get_param(full_name, default)` (rospy.get_param, or a dict's get in tests)."""
