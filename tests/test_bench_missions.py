@@ -63,9 +63,19 @@ def test_fifty_uavs_cross_with_orca_and_check_in_the_big_world(make_crossing, tm
     for start, cross in zip(ring, crossing, strict=True):
         assert isinstance(cross, FollowPathParams)
         here, there = start.path[0].as_list()[3][0], cross.path[0].as_list()[3][0]
-        assert here[2] == there[2] and here[2] in (8.0, 10.0)  # each crosses at its own altitude
+        assert here[2] == there[2] and here[2] in (8.0, 10.5, 13.0, 15.5)  # each crosses at its own altitude
         assert there[0] == pytest.approx(-here[0], abs=1e-3) and there[1] == pytest.approx(-here[1], abs=1e-3)
-    assert {c.path[0].as_list()[3][0][2] for c in crossing} == {8.0, 10.0}
+    assert {c.path[0].as_list()[3][0][2] for c in crossing} == {8.0, 10.5, 13.0, 15.5}
+    layer = {k: crossing[k].path[0].as_list()[3][0][2] for k in range(50)}
+    assert all(layer[k] != layer[(k + 25) % 50] for k in range(50))  # never head-on in one layer
+
+
+def test_layers_that_would_meet_head_on_are_refused(make_crossing, tmp_path, capsys):
+    target = tmp_path / "x.json"
+    with pytest.raises(SystemExit):
+        make_crossing.main(["--uavs", "50", "--altitudes", "8", "10", "12", "14", "16", "-o", str(target)])
+    assert "5 layers put each of the 50 UAVs in the layer of the one crossing towards it" in capsys.readouterr().err
+    assert not target.exists()
 
 
 def test_an_existing_file_is_replaced_only_with_force(make_crossing, tmp_path, capsys):

@@ -1,18 +1,22 @@
 """Write an N-UAV crossing mission with ORCA-3D throughout, for bench/mission_batch.py.
 
 The UAVs stand on pads in rows of a ground-station volume (2 m apart by default). They take off
-together, fly each to its own point on a ring round a central zone (every other one higher), then
-each crosses to the opposite point of the ring at its altitude and flies home above its pad, and
-all land. ORCA-3D is on for every UAV from the start. A collision or a failed leg takes the
-safety branch (hover, save the CSVs, land), as in the project's missions.
+together, fly each to its own point on a ring round a central zone (neighbours on the ring at
+different altitudes, in turn), then each crosses to the opposite point of the ring at its altitude
+and flies home above its pad, and all land. ORCA-3D is on for every UAV from the start. A collision
+or a failed leg takes the safety branch (hover, save the CSVs, land), as in the project's missions.
 
 Two shapes, chosen by --uavs (every value can be overridden):
   up to 10 UAVs   the world Gym/Central_Obstacle_Torus (worlds/): a ring of 8 m at 5.5 / 6.5 m,
                   take-off to 3 m, home at 3 m; `--uavs 10` writes bench/missions/Gym/10UAVs_Crossing_ORCA.json
                   as it is;
   more            the world Gym/Big_Crossing (bench/worlds/, 120 x 120 x 30 m, one central obstacle
-                  4 m high, 50 pads): a ring of N * 5 m / (2 pi) (40 m for 50), at 8 / 10 m, take-off
-                  to 5 m, home at 5 m.
+                  4 m high, 50 pads): a ring of N * 5 m / (2 pi) (40 m for 50), in four layers at
+                  8 / 10.5 / 13 / 15.5 m, take-off to 5 m, home at 5 m. In two layers 25 UAVs met
+                  at the centre in each, and ORCA-3D let two of them touch (gap -0.01 to -0.02 m) in
+                  both runs tried, with 5 or 10 neighbours; four layers of 12 or 13 fly it with none.
+                  A number of layers that divides N / 2 is refused: a UAV and the one crossing the
+                  other way from the opposite point would meet head-on in the same layer.
 
 Each leg's time limit is 100 s, or three times its longest leg at ORCA's maxSpeed when that is
 longer. The mission is loaded and checked against its world (every place inside the world
@@ -47,6 +51,7 @@ COLORS = [[255, 0, 0], [0, 255, 0], [0, 0, 255], [255, 255, 0], [255, 0, 255], [
 ORCA_PARAMS = ["N_neighbors_aware", "timeStep", "neighborDist", "timeHorizon", "agent_radius", "maxSpeed"]
 MIN_LEG_TIME = 100.0  # s
 RING_GAP = 5.0  # m between neighbours on the ring of a big crossing
+BIG_LAYERS = (8.0, 10.5, 13.0, 15.5)  # m: the altitudes of a big crossing, in turn round the ring
 
 
 @dataclass(frozen=True)
@@ -54,7 +59,7 @@ class Crossing:
     uavs: int
     world: str  # WORLD/SUBWORLD, looked up with bench/ first
     ring_radius: float  # m, round the ring volume's origin
-    altitudes: tuple[float, float]  # m in the ring volume: even-numbered UAVs (from 0) at the first
+    altitudes: tuple[float, ...]  # m in the ring volume: UAV k (from 0) at altitudes[k % len(altitudes)]
     take_off: float  # m above the pad
     home: float  # m in the pad volume
     rows: int = 2
@@ -70,7 +75,7 @@ class Crossing:
 def default_crossing(uavs: int) -> Crossing:
     if uavs <= 10:
         return Crossing(uavs, "Gym/Central_Obstacle_Torus", 8.0, (5.5, 6.5), 3.0, 3.0)
-    return Crossing(uavs, "Gym/Big_Crossing", float(round(uavs * RING_GAP / (2 * math.pi))), (8.0, 10.0), 5.0, 5.0)
+    return Crossing(uavs, "Gym/Big_Crossing", float(round(uavs * RING_GAP / (2 * math.pi))), BIG_LAYERS, 5.0, 5.0)
 
 
 def pads(c: Crossing) -> list[tuple[float, float]]:
@@ -86,7 +91,7 @@ def ring_point(c: Crossing, index: int, opposite: bool = False) -> list[float]:
     """UAV `index`'s point on the ring (the first due south of the centre), or the opposite one, at its altitude."""
     angle = math.radians(-90.0 + 360.0 * index / c.uavs + (180.0 if opposite else 0.0))
     return [_round(c.ring_radius * math.cos(angle)), _round(c.ring_radius * math.sin(angle)),
-            c.altitudes[index % 2]]
+            c.altitudes[index % len(c.altitudes)]]
 
 
 def _round(value: float) -> float:
@@ -238,8 +243,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--force", action="store_true", help="replace the output file if it exists")
     parser.add_argument("--world", help="WORLD/SUBWORLD (bench/ searched first) or a .json file; default by --uavs")
     parser.add_argument("--ring-radius", type=float, help="m round the CentralZone origin; default by --uavs")
-    parser.add_argument("--altitudes", type=float, nargs=2, metavar=("LOW", "HIGH"),
-                        help="m of every other UAV on the ring; default by --uavs")
+    parser.add_argument("--altitudes", type=float, nargs="+", metavar="M",
+                        help="m of the UAVs on the ring, in turn (two or more layers); default by --uavs")
     parser.add_argument("--take-off", type=float, help="take-off height above the pad, m; default by --uavs")
     parser.add_argument("--home", type=float, help="height flown home at, m in the pad volume; default by --uavs")
     parser.add_argument("--rows", type=int, help="rows of pads (default 2)")
@@ -256,6 +261,13 @@ def crossing_from_args(parser: argparse.ArgumentParser, args: argparse.Namespace
               "rows": args.rows, "pad_spacing": args.pad_spacing, "neighbors": args.neighbors,
               "altitudes": tuple(args.altitudes) if args.altitudes else None}
     c = Crossing(**{**c.__dict__, **{k: v for k, v in chosen.items() if v is not None}})
+    layers = len(c.altitudes)
+    if layers < 2 or len(set(c.altitudes)) != layers:
+        parser.error(f"--altitudes {' '.join(f'{a:g}' for a in c.altitudes)}: give two or more different altitudes")
+    if c.uavs % 2 == 0 and (c.uavs // 2) % layers == 0:
+        parser.error(f"--altitudes: {layers} layers put each of the {c.uavs} UAVs in the layer of the one crossing "
+                     f"towards it from the opposite point (head-on); give a number of layers that does not divide "
+                     f"{c.uavs // 2}")
     for name, value in (("--ring-radius", c.ring_radius), ("--rows", c.rows), ("--pad-spacing", c.pad_spacing),
                         ("--neighbors", c.neighbors), ("--take-off", c.take_off)):
         if value <= 0:
@@ -285,7 +297,7 @@ def main(argv=None) -> int:
         return 1
     write_text_atomically(output, mission_text(data), overwrite=args.force)
     print(f"{output}: {c.uavs} UAVs, pads {c.rows} x {c.columns} ({c.pad_spacing:g} m), ring {c.ring_radius:g} m at "
-          f"{c.altitudes[0]:g} / {c.altitudes[1]:g} m, checked against {world_file}")
+          f"{' / '.join(f'{a:g}' for a in c.altitudes)} m, checked against {world_file}")
     return 0
 
 
