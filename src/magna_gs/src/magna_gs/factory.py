@@ -244,35 +244,59 @@ def wait_sim_seconds(seconds: float, stop: Callable[[], bool]) -> bool:
 
 
 class ActionClients:
-    """One SimpleActionClient per (UAV, action), made on first use and kept."""
+    """One SimpleActionClient per (UAV, action), made on first use and kept.
+
+    Clients of different UAVs (or actions) are made at the same time: each waits for its server, and a
+    mission's concurrence of 50 take-offs, or the 50 save_csv goals at the end, would otherwise wait for
+    each other's connections one after the other. Two threads asking for the same one get the same client.
+    """
 
     def __init__(self, wait: float = 60.0):
         self.wait = wait
         self._clients: dict[tuple[int, str], SimpleActionClient] = {}
-        self._lock = threading.Lock()
+        self._making: dict[tuple[int, str], threading.Lock] = {}  # one lock per client being made
+        self._lock = threading.Lock()  # guards the two dicts only, never held while waiting for a server
+        self._stopped = False
 
     def get(self, uav_id: int, action: str) -> SimpleActionClient:
+        key = (uav_id, action)
         with self._lock:
-            key = (uav_id, action)
-            if key not in self._clients:
-                spec = getattr(actions, ACTION_TYPES[action] + "Action")
-                client = SimpleActionClient(names.manager(uav_id, action), spec)
-                # Wall time: a manager takes seconds to start, and under rtf max a minute of
-                # simulated time passes in a few of them.
-                deadline = time.monotonic() + self.wait
-                while not client.wait_for_server(rospy.Duration(0.05)) and time.monotonic() < deadline:
-                    if rospy.is_shutdown():
-                        break
-                if not client.wait_for_server(rospy.Duration(0.01)):
+            client = self._clients.get(key)
+            if client is not None:
+                return client
+            making = self._making.setdefault(key, threading.Lock())
+        with making:
+            with self._lock:
+                client = self._clients.get(key)
+            if client is not None:  # made by the thread we waited for
+                return client
+            client = self._make(uav_id, action)
+            with self._lock:
+                if self._stopped:  # the mission ended meanwhile: nobody would stop this one
                     client.stop()
-                    raise RuntimeError(f"UAV {uav_id}: no action server /magna/uav_{uav_id}/{action} within "
-                                       f"{self.wait:g} s; did its manager start?")
+                    raise RuntimeError(f"UAV {uav_id}: no {action} client: the ground station is finishing")
                 self._clients[key] = client
-            return self._clients[key]
+            return client
+
+    def _make(self, uav_id: int, action: str) -> SimpleActionClient:
+        spec = getattr(actions, ACTION_TYPES[action] + "Action")
+        client = SimpleActionClient(names.manager(uav_id, action), spec)
+        # Wall time: a manager takes seconds to start, and under rtf max a minute of
+        # simulated time passes in a few of them.
+        deadline = time.monotonic() + self.wait
+        while not client.wait_for_server(rospy.Duration(0.05)) and time.monotonic() < deadline:
+            if rospy.is_shutdown():
+                break
+        if not client.wait_for_server(rospy.Duration(0.01)):
+            client.stop()
+            raise RuntimeError(f"UAV {uav_id}: no action server /magna/uav_{uav_id}/{action} within "
+                               f"{self.wait:g} s; did its manager start?")
+        return client
 
     def stop(self) -> None:
         with self._lock:
-            for client in self._clients.values():
-                client.stop()
-            self._clients.clear()
+            self._stopped = True
+            clients, self._clients = list(self._clients.values()), {}
+        for client in clients:
+            client.stop()
 
