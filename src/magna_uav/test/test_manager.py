@@ -20,6 +20,7 @@ from magna_uav.roles import (
     FollowAgentAtPositionRole,
     FollowPathRole,
     LandRole,
+    OnBoardMissionRole,
     TakeOffRole,
 )
 from magna_uav.world_view import WorldView
@@ -99,7 +100,9 @@ def test_take_off_and_land_follow_the_ual_states():
     assert uavs[0].state == LANDED_ARMED
 
 
-def test_a_take_off_answered_late_is_given_its_time_from_the_answer():
+@pytest.mark.parametrize("make_role", [lambda: TakeOffRole(2.0), lambda: OnBoardMissionRole([TakeOffRole(2.0)])],
+                         ids=["take_off", "set_mission"])
+def test_a_take_off_answered_late_is_given_its_time_from_the_answer(make_role):
     # The UAL's service answers 6 simulated s after the request (a busy ROS master while simulated
     # time runs on), and the UAV's state shows the take-off only a control step after the answer, as
     # the UAL's state topic does. Counted from the request, the 5 s the UAL has to show TAKING_OFF
@@ -124,7 +127,7 @@ def test_a_take_off_answered_late_is_given_its_time_from_the_answer():
 
     uavs[0].take_off, world.sleep = slow_take_off, sleep
     manager.clock = Clock(world.now, sleep)
-    result = fly(manager, TakeOffRole(2.0))
+    result = fly(manager, make_role())
     assert result.outcome == "succeeded", result.message
     assert uavs[0].state == FLYING_AUTO
     assert world.t > answer_after

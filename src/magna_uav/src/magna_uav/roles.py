@@ -99,7 +99,7 @@ class UalManoeuvre:
 
     def answered(self, elapsed: float) -> None:
         """The UAL's service answered at `elapsed`: its time to show the manoeuvre counts from here. A call
-        that took long (a busy ROS master, a loaded machine) while simulated time ran on must not eat it."""
+        that took long while simulated time ran on (a loaded machine) must not eat it."""
         self.asked_at = max(self.asked_at, elapsed)
 
     def failure(self, state: int, z: float, elapsed: float, distance_left: float, stuck: Callable[[float], str]) -> str:
@@ -151,7 +151,17 @@ class Role(ABC):
     def _step(self, view: WorldView, now: float, elapsed: float) -> RoleStep: ...
 
 
-class TakeOffRole(Role):
+class ManoeuvreRole(Role):
+    """A role that asks the UAL for a manoeuvre (`self.manoeuvre`) and gives it its time from the UAL's answer."""
+
+    manoeuvre: UalManoeuvre
+
+    def ual_answered(self, now: float) -> None:
+        if self.started is not None:
+            self.manoeuvre.answered(now - self.started)
+
+
+class TakeOffRole(ManoeuvreRole):
     """Ask UAL for a take-off to `height` above the UAV, then wait for FLYING_AUTO at that height.
 
     It ends aborted, never succeeded, when the UAL refuses (the manager), gives the take-off up (the state is
@@ -167,10 +177,6 @@ class TakeOffRole(Role):
         self.height, self.tolerance = float(height), tolerance
         self.target_z: float | None = None
         self.manoeuvre = UalManoeuvre("take-off", TAKING_OFF, LANDED, (LANDING, UNINITIALIZED), "above")
-
-    def ual_answered(self, now: float) -> None:
-        if self.started is not None:
-            self.manoeuvre.answered(now - self.started)
 
     def _step(self, view, now, elapsed):
         own = view.own
@@ -202,7 +208,7 @@ class TakeOffRole(Role):
                                                    f"below {target_z:.2f} m")
 
 
-class LandRole(Role):
+class LandRole(ManoeuvreRole):
     """Ask UAL to land, then wait for a landed state. Aborted, never succeeded, when the UAL refuses (the
     manager), gives the landing up (FLYING_AUTO again, or never LANDING), is interrupted (TAKING_OFF,
     UNINITIALIZED), or the UAV comes down no more (Stall: a roof under it, the UAL holding it)."""
@@ -213,10 +219,6 @@ class LandRole(Role):
         super().__init__(duration)
         self.asked = False
         self.manoeuvre = UalManoeuvre("landing", LANDING, (FLYING_AUTO,), (TAKING_OFF, UNINITIALIZED), "under")
-
-    def ual_answered(self, now: float) -> None:
-        if self.started is not None:
-            self.manoeuvre.answered(now - self.started)
 
     def _step(self, view, now, elapsed):
         own = view.own
@@ -459,6 +461,9 @@ class OnBoardMissionRole(Role):
         if not roles:
             raise ValueError("set_mission: the mission has nothing to do")
         self.roles, self.index = list(roles), 0
+
+    def ual_answered(self, now: float) -> None:
+        self.roles[self.index].ual_answered(now)  # the role that asked: a take-off or landing step never succeeds
 
     def _step(self, view, now, elapsed):
         if elapsed == 0.0 and view.own.ual_state in LANDED and not isinstance(self.roles[0], TakeOffRole):
