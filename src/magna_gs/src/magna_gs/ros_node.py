@@ -468,11 +468,11 @@ class GroundStationServices:
     def stop_managers(self, grace: float = 10.0) -> None:
         self.liveness.stop()  # they stop on purpose now
         lost_ids = {uav_id for uav_id in self.managers if self.lost_manager(uav_id) is not None}
+        running = {process.pid for uav_id, process in self.managers.items() if uav_id not in lost_ids}
         ended: set[int] = set()  # processes ended here (a host's pid once)
         for uav_id, process in list(self.managers.items()):
             lost = uav_id in lost_ids
-            host_lost = all(u in lost_ids for u, p in self.managers.items() if p is process)
-            if lost and uav_id in self.hosted and not host_lost:  # its thread has ended; the others run on
+            if lost and uav_id in self.hosted and process.pid in running:  # its thread has ended; the others run on
                 continue
             if lost:  # dead or frozen (a host whose managers are all lost, the same): nothing to ask it
                 if process.pid not in ended:
