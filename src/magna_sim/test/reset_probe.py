@@ -3,7 +3,8 @@
   reset_probe.py reset SEED  spawn a UAV and an obstacle, let time run, reset with SEED, then record
   reset_probe.py cold        record from the start of a simulator started after this line: "listening"
 
-Recorded: UAV 1's odom and the swarm state with stamps up to RECORD_UNTIL s of simulated time.
+Recorded: UAV 1's odom and the swarm state with stamps up to RECORD_UNTIL s of simulated time, and the UAL states
+heard on UAV 1's ual/state (it stands landed throughout: one state).
 """
 import json
 import sys
@@ -15,6 +16,7 @@ from magna_msgs.msg import SwarmState
 from magna_msgs.srv import DeleteModel, ResetSimulation, SpawnModel, SpawnModelRequest
 from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
+from uav_abstraction_layer.msg import State
 
 from magna_common import ros_names as names
 
@@ -24,7 +26,7 @@ WAIT = 60.0  # s: a guard against hangs
 
 class Recorder:
     def __init__(self):
-        self.odom, self.swarm, self.clock = {}, {}, []
+        self.odom, self.swarm, self.clock, self.states = {}, {}, [], set()
         self.changed = threading.Condition()
 
     def listen_to_clock(self):
@@ -33,6 +35,7 @@ class Recorder:
     def listen_to_the_uavs(self):
         rospy.Subscriber(names.ual(1, "odom"), Odometry, self._on_odom, queue_size=None)
         rospy.Subscriber(names.SIM_SWARM_STATE, SwarmState, self._on_swarm, queue_size=None)
+        rospy.Subscriber(names.ual(1, "state"), State, self._on_state, queue_size=None)
 
     def _on_clock(self, msg):
         with self.changed:
@@ -45,12 +48,17 @@ class Recorder:
             self.odom[msg.header.stamp.to_nsec()] = [p.x, p.y, p.z, q.x, q.y, q.z, q.w, v.x, v.y, v.z, w.x, w.y, w.z]
             self.changed.notify_all()
 
+    def _on_state(self, msg):
+        with self.changed:
+            self.states.add(msg.state)
+            self.changed.notify_all()
+
     def _on_swarm(self, msg):
         entry = {"frame": msg.header.frame_id, "ids": list(msg.ids),
                  "poses": [[p.position.x, p.position.y, p.position.z,
                             p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w] for p in msg.poses],
                  "velocities": [[v.x, v.y, v.z] for v in msg.velocities],
-                 "angular_velocities": [[w.x, w.y, w.z] for w in msg.angular_velocities]}
+                 "angular_velocities": [[w.x, w.y, w.z] for w in msg.angular_velocities], "states": list(msg.states)}
         with self.changed:
             self.swarm[msg.header.stamp.to_nsec()] = entry
             self.changed.notify_all()
@@ -61,8 +69,8 @@ class Recorder:
                 raise SystemExit(f"reset_probe: timed out waiting for {what}")
 
     def recorded(self):
-        return self.until(lambda r: r.odom and max(r.odom) >= RECORD_UNTIL * 1e9 and r.swarm
-                          and max(r.swarm) >= RECORD_UNTIL * 1e9, f"{RECORD_UNTIL} s of odom and swarm state")
+        return self.until(lambda r: r.odom and max(r.odom) >= RECORD_UNTIL * 1e9 and r.swarm and r.states
+                          and max(r.swarm) >= RECORD_UNTIL * 1e9, f"{RECORD_UNTIL} s of odom, swarm and UAL state")
 
 
 def sim_entries(master):
@@ -108,7 +116,8 @@ def reset_then_record(seed):
         return {"spawned": spawned, "before": before, "refused": [refused.success, refused.message],
                 "reset": [answer.success, answer.message], "after": after, "deleted": deleted, "ual_ids": ual_ids,
                 "respawned": [respawned.success, respawned.message], "clock": clock,
-                "odom": recorder.odom, "swarm": recorder.swarm}
+                "odom": recorder.odom, "swarm": recorder.swarm,
+                "states": sorted(recorder.states)}
 
 
 def record_from_the_start():
@@ -117,7 +126,8 @@ def record_from_the_start():
     print("listening", flush=True)
     recorder.recorded()
     with recorder.changed:
-        return {"odom": recorder.odom, "swarm": recorder.swarm}
+        return {"odom": recorder.odom, "swarm": recorder.swarm,
+                "states": sorted(recorder.states)}
 
 
 def main():

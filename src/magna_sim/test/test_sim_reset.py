@@ -33,7 +33,8 @@ def probed(process):
 
 
 def assert_swarm_is_the_odom(result):
-    """Each swarm state holds UAV 1 exactly as its odom of that stamp (odom's twist is in the body frame)."""
+    """Each swarm state holds UAV 1 exactly as its odom of that stamp (odom's twist is in the body frame), and in
+    the UAL state its ual/state reports (one: it stands landed)."""
     common = sorted(set(result["odom"]) & set(result["swarm"]))
     assert len(common) >= 30, len(common)
     for stamp in common:
@@ -43,6 +44,7 @@ def assert_swarm_is_the_odom(result):
         assert pose == odom[:7]
         assert list(rotate_into_body(pose[3:], velocity)) == odom[7:10]
         assert list(rotate_into_body(pose[3:], angular)) == odom[10:]
+        assert len(swarm["states"]) == len(swarm["ids"]) and [swarm["states"][0]] == result["states"]
 
 
 def test_a_reset_simulator_runs_as_a_cold_one_with_the_seed(fresh_ros_master):

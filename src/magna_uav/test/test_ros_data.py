@@ -274,8 +274,9 @@ def test_odom_velocity_matches_the_rotation_matrix_for_any_attitude(seed):
     np.testing.assert_allclose(data.view.agent(2).velocity, rotation @ body, atol=1e-12)
 
 
-def swarm_of(odoms: dict, stamp: float) -> SwarmState:
-    """The SwarmState magna_sim publishes with these odom messages: the same poses, the velocities in map."""
+def swarm_of(odoms: dict, stamp: float, states: dict | None = None) -> SwarmState:
+    """The SwarmState magna_sim publishes with these odom messages (and UAL states, by id, when given): the same
+    poses, the velocities in map."""
     msg = SwarmState()
     msg.header.stamp.secs, msg.header.stamp.nsecs = int(stamp), int(round(stamp % 1 * 1e9))
     msg.header.frame_id = "map"
@@ -288,6 +289,8 @@ def swarm_of(odoms: dict, stamp: float) -> SwarmState:
         msg.poses.append(o.pose.pose)
         msg.velocities.append(Vector3(*rotation.apply([linear.x, linear.y, linear.z])))
         msg.angular_velocities.append(Vector3(*rotation.apply([angular.x, angular.y, angular.z])))
+    if states is not None:
+        msg.states = bytes(states[uav_id] for uav_id in sorted(odoms))
     return msg
 
 
@@ -301,12 +304,15 @@ def test_the_swarm_gives_each_uav_exactly_what_its_odom_gives(seed):
                              body_spin=rng.normal(size=3), orientation=Quaternion(*(q / np.linalg.norm(q))),
                              stamp=12.345678901)
     radii = {1: 0.3, 2: 0.5, 3: 0.4, 4: 0.6}
+    states = {1: State.FLYING_AUTO, 2: State.LANDED_ARMED, 3: State.TAKING_OFF, 4: State.LANDING}
     by_odom, by_swarm = WorldUpdater(WorldView(1), [2, 3, 4], radii), WorldUpdater(WorldView(1), [2, 3, 4], radii)
     for uav_id in (2, 3):
         by_odom.on_odom(uav_id, odoms[uav_id], now=99.0)
-    by_swarm.on_swarm(swarm_of(odoms, 12.345678901), now=99.0, only=[2, 3])
+        by_odom.on_state(uav_id, State(state=states[uav_id]))
+    by_swarm.on_swarm(swarm_of(odoms, 12.345678901, states), now=99.0, only=[2, 3])
     assert by_swarm.view.agent(4) is None and by_swarm.view.agent(1) is None  # only the UAVs asked for
     for uav_id in (2, 3):
+        assert by_swarm.view.agent(uav_id).ual_state == by_odom.view.agent(uav_id).ual_state == states[uav_id]
         a, b = by_odom.view.agent(uav_id), by_swarm.view.agent(uav_id)
         np.testing.assert_array_equal(a.position, b.position)
         np.testing.assert_array_equal(a.orientation, b.orientation)
@@ -321,9 +327,22 @@ def test_a_swarm_whose_arrays_do_not_match_its_ids_is_refused_whole():
     data = WorldUpdater(WorldView(1), [2, 3], {1: 0.3, 2: 0.5, 3: 0.5})
     msg = swarm_of({2: odom(1, 2, 3, (0, 0, 0)), 3: odom(4, 5, 6, (0, 0, 0))}, 1.0)
     msg.velocities.pop()
-    with pytest.raises(ValueError, match="2 ids, 2 poses, 1 velocities"):
+    with pytest.raises(ValueError, match="2 ids, 2 poses, 1 velocities, 2 angular velocities and 0 states"):
         data.on_swarm(msg)
+    one_state = swarm_of({2: odom(1, 2, 3, (0, 0, 0)), 3: odom(4, 5, 6, (0, 0, 0))}, 1.0)
+    one_state.states = bytes([State.FLYING_AUTO])
+    with pytest.raises(ValueError, match="and 1 states; each array needs one entry per id"):
+        data.on_swarm(one_state)
     assert data.view.agent(2) is None
+
+
+def test_a_swarm_without_states_leaves_the_ual_states_as_they_were():
+    data = WorldUpdater(WorldView(1), [2], {1: 0.3, 2: 0.5})
+    data.on_state(2, State(state=State.FLYING_MANUAL))
+    data.on_swarm(swarm_of({2: odom(1, 2, 3, (0, 0, 0))}, 1.0))  # an older publisher's message
+    assert data.view.agent(2).ual_state == State.FLYING_MANUAL and data.view.agent(2).position[0] == 1
+    data.on_swarm(swarm_of({2: odom(1, 2, 3, (0, 0, 0))}, 2.0, {2: State.LANDING}))
+    assert data.view.agent(2).ual_state == State.LANDING
 
 
 def test_one_swarm_feed_subscribes_once_and_feeds_every_view_its_own_uavs():
@@ -351,8 +370,9 @@ def test_one_swarm_feed_subscribes_once_and_feeds_every_view_its_own_uavs():
     assert views[1].view.agent(2).position[0] == 2 and views[2].view.agent(1).position[0] == 10
     bad = swarm_of({1: odom(0, 0, 0, (0, 0, 0))}, 4.0)
     bad.poses.append(bad.poses[0])
-    assert feed.deliver(bad) == [f"{names.SIM_SWARM_STATE}: swarm state with 1 ids, 2 poses, 1 velocities and 1 "
-                                 f"angular velocities; each array needs one entry per id"]
+    assert feed.deliver(bad) == [f"{names.SIM_SWARM_STATE}: swarm state with 1 ids, 2 poses, 1 velocities, 1 "
+                                 f"angular velocities and 0 states; each array needs one entry per id (states may "
+                                 f"be empty)"]
     feed.close()
     assert not made[0].open and feed.members == 0
 
@@ -476,3 +496,41 @@ def test_topics_fill_the_view(rospy_node):
         data.close()
         for p in pubs:
             p.unregister()
+
+
+@pytest.mark.ros
+def test_a_simulated_own_uav_is_heard_on_the_swarm_alone_and_a_mavlink_one_on_its_topics(rospy_node):
+    rospy = rospy_node
+    from magna_uav.ros_data import RosWorldData, topics
+
+    own, other, radii = 93, 94, {93: 0.3, 94: 0.4}
+    feed = SwarmFeed(topic="/test93/swarm_state")
+    swarm_pub = rospy.Publisher(feed.topic, SwarmState, queue_size=1, latch=True)
+    simulated = RosWorldData(WorldView(own), [own, other], radii, swarm=feed)
+    mavlink_flown = RosWorldData(WorldView(own), [own, other], radii, swarm=feed, odom_ids=[own])
+    try:
+        own_topics = {topics(own)[name] for name in ("pose", "velocity", "state")}
+        assert not own_topics & set(simulated.topics_heard), simulated.topics_heard
+        assert own_topics <= set(mavlink_flown.topics_heard), mavlink_flown.topics_heard
+        assert topics(own)["battery"] in simulated.topics_heard  # the battery is not in the swarm's message
+        with pytest.raises(LookupError, match="UAV 93 has no pose yet \\(nothing heard on /test93/swarm_state\\)"):
+            _ = simulated.view.own
+        assert mavlink_flown.view.own_pose_topic == topics(own)["pose"]
+        swarm_pub.publish(swarm_of({own: odom(1, 2, 3, (0, 0, 0)), other: odom(4, 5, 6, (0, 0, 0))}, 2.0,
+                                   {own: State.FLYING_AUTO, other: State.LANDED_ARMED}))
+
+        def heard():
+            with simulated.lock:
+                return simulated.view.has_own and simulated.view.agent(other) is not None
+
+        wait_until(heard, "uav_93's view to fill from the swarm's state")
+        with simulated.lock:
+            assert simulated.view.own.ual_state == State.FLYING_AUTO
+            np.testing.assert_array_equal(simulated.view.own.position, [1, 2, 3])
+        with mavlink_flown.lock:  # the same message: the other UAV from it, not the own one
+            assert mavlink_flown.view.agent(other) is not None and not mavlink_flown.view.has_own
+    finally:
+        simulated.close()
+        mavlink_flown.close()
+        feed.close()
+        swarm_pub.unregister()

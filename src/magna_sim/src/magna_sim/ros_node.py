@@ -657,7 +657,8 @@ class SimNode:
         if self._swarm_pub.get_num_connections():
             vehicles = self.world.vehicles
             self._swarm_pub.publish(swarm_state(stamp, [
-                (uav_id, position, vehicles[uav_id].orientation, velocity, vehicles[uav_id].angular_velocity)
+                (uav_id, position, vehicles[uav_id].orientation, velocity, vehicles[uav_id].angular_velocity,
+                 self.servers[uav_id].logic.state)
                 for uav_id, (position, velocity) in readings.items()]))
 
     def _publish_batteries(self, stamp) -> None:

@@ -56,11 +56,12 @@ def rotate_into_body(orientation_xyzw, vector) -> tuple[float, float, float]:
 def swarm_state(stamp: rospy.Time, states) -> SwarmState:
     """The swarm's state at one publication instant.
 
-    `states`: (uav_id, position, orientation_xyzw, velocity, angular_velocity) per UAV, the values its own UAL
-    topics carry at `stamp` (converted to floats the same way, so they compare equal)."""
+    `states`: (uav_id, position, orientation_xyzw, velocity, angular_velocity, ual_state) per UAV, the values its
+    own UAL topics carry at `stamp` (converted to floats the same way, so they compare equal)."""
     msg = SwarmState()
     msg.header.stamp, msg.header.frame_id = stamp, MAP_FRAME
-    for uav_id, position, orientation, velocity, angular in sorted(states, key=lambda state: state[0]):
+    ual_states = []
+    for uav_id, position, orientation, velocity, angular, ual_state in sorted(states, key=lambda state: state[0]):
         pose = Pose()
         pose.position.x, pose.position.y, pose.position.z = (float(c) for c in position)
         pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w = (float(c) for c in orientation)
@@ -68,6 +69,8 @@ def swarm_state(stamp: rospy.Time, states) -> SwarmState:
         msg.poses.append(pose)
         msg.velocities.append(Vector3(*(float(c) for c in velocity)))
         msg.angular_velocities.append(Vector3(*(float(c) for c in angular)))
+        ual_states.append(int(ual_state))
+    msg.states = bytes(ual_states)  # uint8[]: bytes, as rospy hands it to subscribers
     return msg
 
 

@@ -25,7 +25,7 @@ Each manager reads the private parameters of the standalone node it replaces, /u
 
 Topics:   ~ended (std_msgs/UInt32MultiArray, latched): the ids of the managers that have ended (a die
           request, or an error), ascending; a manager's heartbeat stops when it ends
-          /magna/sim/swarm_state: one subscription feeds every hosted manager's view of the others
+          /magna/sim/swarm_state: one subscription feeds every hosted manager's view of the simulated UAVs
 Service:  /magna/orca3d/compute_velocity_many: the ORCA-3D steps of every hosted manager at one control
           tick go in one call (the same answers as one call per UAV)
 A die request ends that manager only; once every manager has ended, the host exits (status 0).
@@ -62,7 +62,7 @@ def main(argv=None) -> int:
     except (ValueError, SettingsError) as error:
         rospy.logfatal(f"uav_manager_host: {error}")
         return 2
-    swarm = SwarmFeed()  # one subscription feeds every manager's view of the others
+    swarm = SwarmFeed()  # one subscription feeds every manager's view of the simulated UAVs, its own included
     orca_batcher = OrcaBatcher()  # one ORCA-3D call per control tick for every manager flying with it
     ended_pub = rospy.Publisher(f"~{ENDED_TOPIC}", UInt32MultiArray, queue_size=1, latch=True)
     ended_pub.publish(UInt32MultiArray(data=[]))

@@ -17,11 +17,11 @@ to, N * (N - 1) per publishing period across the fleet for each topic per other 
 message that carries pose and velocity halves that; nothing reads another UAV's UAL state
 or battery (the evaluator, roles and recorder look at the own UAV's).
 
-In simulation the other UAVs come instead from magna_sim's one message per period,
-/magna/sim/swarm_state (magna_msgs/SwarmState: every simulated UAV's odom values, stamped
-with the odom's stamp), through a `SwarmFeed`: one subscription that feeds every manager of a
-process (a host's N managers deserialise it once, not N times). Only the other UAVs flown by
-MAVLink (hil, real), which magna_sim does not fly, are still heard on their odom.
+In simulation every UAV, the own one included, comes instead from magna_sim's one message per
+period, /magna/sim/swarm_state (magna_msgs/SwarmState: every simulated UAV's odom values and
+UAL state, stamped with the odom's stamp), through a `SwarmFeed`: one subscription that feeds
+every manager of a process (a host's N managers deserialise it once, not 4N times). Only the
+UAVs flown by MAVLink (hil, real), which magna_sim does not fly, are still heard on their topics.
 
 and to the world node's latched /magna/world/markers, whose namespace "obstacles" becomes
 the view's obstacles (their real shape and their bounding sphere). A UAV enters the view at its first pose: what is
@@ -361,14 +361,17 @@ class WorldUpdater:
                      yaw_rate=spin[2], stamp=stamp, pose_stamp_ns=stamp_ns, velocity_stamp_ns=stamp_ns, pose=True)
 
     def on_swarm(self, msg: SwarmState, now: float = 0.0, only: Iterable[int] | None = None) -> None:
-        """Pose and velocity of every UAV of the message that this view holds (of `only`, when given), exactly as
-        each one's odom gives them: the same position, orientation and stamp, the velocity already in map, the
-        yaw rate the map z of the angular velocity. ValueError if the arrays do not match the ids."""
+        """Pose, velocity and UAL state of every UAV of the message that this view holds (of `only`, when given),
+        exactly as its UAL topics give them: the same position, orientation and stamp, the velocity already in map,
+        the yaw rate the map z of the angular velocity. A message without states (an older publisher) leaves the
+        UAL states as they were. ValueError if the arrays do not match the ids."""
         count = len(msg.ids)
-        if not len(msg.poses) == len(msg.velocities) == len(msg.angular_velocities) == count:
+        if not (len(msg.poses) == len(msg.velocities) == len(msg.angular_velocities) == count
+                and len(msg.states) in (0, count)):
             raise ValueError(f"swarm state with {count} ids, {len(msg.poses)} poses, {len(msg.velocities)} "
-                             f"velocities and {len(msg.angular_velocities)} angular velocities; each array needs one "
-                             f"entry per id")
+                             f"velocities, {len(msg.angular_velocities)} angular velocities and {len(msg.states)} "
+                             f"states; each array needs one entry per id (states may be empty)")
+        states = msg.states
         wanted = self._records.keys() if only is None else set(only) & self._records.keys()
         stamp = msg.header.stamp.to_sec() or now
         stamp_ns = _stamp_ns(msg, now)
@@ -379,10 +382,11 @@ class WorldUpdater:
                     continue
                 pose, linear = msg.poses[index], msg.velocities[index]
                 p, q = pose.position, pose.orientation
+                ual_state = {"ual_state": int(states[index])} if states else {}
                 self._update_held(agent_id, position=(p.x, p.y, p.z), orientation=(q.x, q.y, q.z, q.w),
                                   velocity=(linear.x, linear.y, linear.z),
                                   yaw_rate=float(msg.angular_velocities[index].z), stamp=stamp,
-                                  pose_stamp_ns=stamp_ns, velocity_stamp_ns=stamp_ns, pose=True)
+                                  pose_stamp_ns=stamp_ns, velocity_stamp_ns=stamp_ns, pose=True, **ual_state)
 
         self.lock.apply_or_leave(apply)  # a manager busy in its step takes it when its next step begins
 
@@ -488,8 +492,10 @@ class SwarmFeed:
 class RosWorldData(WorldUpdater):
     """WorldUpdater wired to the topics; `close()` (or leaving a `with` block) unsubscribes.
 
-    With `swarm`, the other UAVs come from that feed, except those in `odom_ids` (the hil and real ones, which
-    magna_sim does not fly): they, and without a feed every other UAV, are heard on their odom.
+    With `swarm`, the UAVs come from that feed, the own one too, except those in `odom_ids` (the hil and real
+    ones, which magna_sim does not fly): such an own UAV is heard on its pose, velocity and state topics; the
+    others, and without a feed every other UAV, on their odom. An own UAV from the feed saves a host three
+    30 Hz subscriptions per manager, its largest share of messages; the battery (1 Hz) stays a topic.
     """
 
     def __init__(self, view: WorldView, agent_ids: list[int], safety_radii: dict[int, float], depth: bool = False,
@@ -501,25 +507,36 @@ class RosWorldData(WorldUpdater):
         self._rospy = rospy
         self._subscribers: list[rospy.Subscriber] = []
         others = [i for i in self.agent_ids if i != view.own_id]
-        odom = set(others) if swarm is None else {int(i) for i in odom_ids} & set(others)
+        not_simulated = {int(i) for i in odom_ids}
+        odom = set(others) if swarm is None else not_simulated & set(others)
+        own_from_swarm = swarm is not None and view.own_id not in not_simulated
         self._swarm = swarm
+        view.own_pose_topic = topics(view.own_id)["pose"]
         if swarm is not None:
-            swarm.join(self, [i for i in others if i not in odom])
+            swarm.join(self, [i for i in self.agent_ids if i not in odom and (i != view.own_id or own_from_swarm)])
+            if own_from_swarm:
+                view.own_pose_topic = swarm.topic
 
         def sub(topic, msg_type, handler, *args):
             self._subscribers.append(rospy.Subscriber(topic, msg_type, self._guard(handler, topic), callback_args=args,
                                                       queue_size=1, tcp_nodelay=True))
 
         own = topics(view.own_id)
-        sub(own["pose"], PoseStamped, self._pose, view.own_id)
-        sub(own["velocity"], TwistStamped, self._velocity, view.own_id)
+        if not own_from_swarm:
+            sub(own["pose"], PoseStamped, self._pose, view.own_id)
+            sub(own["velocity"], TwistStamped, self._velocity, view.own_id)
+            sub(own["state"], State, self.on_state, view.own_id)
         for i in sorted(odom):
             sub(topics(i)["odom"], Odometry, self._odom, i)
-        sub(own["state"], State, self.on_state, view.own_id)
         sub(own["battery"], BatteryState, self.on_battery, view.own_id)
         if depth:
             sub(own["depth"], Image, self.on_depth, view.own_id)
         sub(markers_topic, MarkerArray, self._markers)
+
+    @property
+    def topics_heard(self) -> list[str]:
+        """The topics this view subscribes to itself (the swarm's feed aside)."""
+        return [subscriber.name for subscriber in self._subscribers]
 
     def _pose(self, agent_id: int, msg: PoseStamped) -> None:
         self.on_pose(agent_id, msg, now=self._rospy.get_time())

@@ -383,7 +383,7 @@ class UavManagerNode:
                 if self.view.has_own:
                     return True
             time.sleep(0.01)
-        rospy.logwarn(f"UAV {self.uav_id} manager: no pose on {names.ual(self.uav_id, 'pose')} within {limit:g} s; "
+        rospy.logwarn(f"UAV {self.uav_id} manager: no pose on {self.view.own_pose_topic} within {limit:g} s; "
                       f"serving anyway, and roles will abort until one comes")
         return False
 

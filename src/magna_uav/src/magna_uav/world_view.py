@@ -86,6 +86,7 @@ class WorldView:
         self.boundaries = None if boundaries is None else np.asarray(boundaries, dtype=float).reshape(3, 2)
         self._agents: dict[int, AgentState] = {}
         self.obstacles = ()
+        self.own_pose_topic = f"/uav_{self.own_id}/ual/pose"  # where the own pose is heard, for the messages
 
     def update_agent(self, state: AgentState) -> None:
         self._agents[state.id] = state
@@ -102,7 +103,7 @@ class WorldView:
         try:
             return self._agents[self.own_id]
         except KeyError:
-            raise LookupError(f"UAV {self.own_id} has no pose yet (nothing heard on /uav_{self.own_id}/ual/pose)") \
+            raise LookupError(f"UAV {self.own_id} has no pose yet (nothing heard on {self.own_pose_topic})") \
                 from None
 
     def others(self) -> list[AgentState]:
