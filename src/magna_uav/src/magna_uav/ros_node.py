@@ -47,6 +47,7 @@ from magna_uav.ros_data import RosWorldData, SwarmFeed
 from magna_uav.ros_navigation import NavigationPublisher, navigation_msg
 from magna_uav.settings import Settings, SettingsError, read_settings
 from magna_uav.stepping_clock import SteppingClock
+from magna_uav.time_alarms import TimeAlarms
 from magna_uav.world_view import WorldView
 
 HELP = """\
@@ -105,22 +106,48 @@ def ground_station_reporter(uav_id: int) -> Reporter:
                     warn=lambda message: rospy.logwarn_throttle(10, message), debug=rospy.logdebug)
 
 
-def wait_until_sim_time(target: float) -> None:
-    """Block until ROS time reaches `target` seconds: on /clock, woken by the message that reaches it (every
-    waiter for the same target wakes on the same one), as rospy.Rate would be; on the wall clock, a sleep."""
+_alarms: TimeAlarms | None = None  # the process's alarms on simulated time, with their watcher thread
+_alarms_made = threading.Lock()
+
+
+def _sim_time_alarms() -> TimeAlarms:
+    """The process's alarms; the first call starts their watcher, which wakes at each /clock message."""
+    global _alarms
+    with _alarms_made:
+        if _alarms is None:
+            alarms = TimeAlarms(rospy.get_time)
+            threading.Thread(target=_watch_sim_time, args=(alarms,), daemon=True, name="sim time alarms").start()
+            _alarms = alarms
+        return _alarms
+
+
+def _watch_sim_time(alarms: TimeAlarms) -> None:
+    rostime_changed = rospy.rostime.get_rostime_cond()  # notified, under itself, after /clock sets the time
+    with rostime_changed:  # held while ringing: a change meanwhile is notified once this waits again
+        while not rospy.is_shutdown():
+            alarms.ring_due()
+            rostime_changed.wait(0.5)
+
+
+def wait_until_sim_time(target: float, stop: threading.Event | None = None) -> None:
+    """Block until ROS time reaches `target` seconds, or `stop` is set: on /clock, woken by the message that reaches
+    it (every waiter for the same target wakes on the same one), as rospy.Rate would be, but through the process's
+    one watcher of the time instead of at every /clock message; on the wall clock, a sleep."""
     if rospy.rostime.is_wallclock():
         rospy.sleep(target - rospy.get_time())
         return
-    rostime_changed = rospy.rostime.get_rostime_cond()  # notified, under itself, after /clock sets the time
+    alarms = _sim_time_alarms()
     start = rospy.get_time()
-    with rostime_changed:
-        while not rospy.is_shutdown():
-            now = rospy.get_time()
-            if now >= target:
-                return
-            if now < start:
-                raise rospy.exceptions.ROSTimeMovedBackwardsException(start - now)
-            rostime_changed.wait(0.5)
+    while not rospy.is_shutdown() and not (stop is not None and stop.is_set()):
+        now = rospy.get_time()
+        if now < start:
+            raise rospy.exceptions.ROSTimeMovedBackwardsException(start - now)
+        alarm = alarms.set(target)
+        if alarm is None:
+            return
+        alarm.wait(0.5)
+    if stop is not None and stop.is_set():
+        return
     raise rospy.ROSInterruptException("ROS shutdown request")
 
 
@@ -183,7 +210,8 @@ class UavManagerNode:
         self.pending: Order | None = None  # the order idle hands to the action's state
         self.reporter = ground_station_reporter(self.uav_id)
         self.alive = rospy.Publisher(names.manager_alive(self.uav_id), Float64, queue_size=1, tcp_nodelay=True)
-        self.beat: rospy.Timer | None = None
+        self.beat: threading.Thread | None = None
+        self._beat_stop = threading.Event()
         self._critical_seen = ""
         self._plan_changed_at = float("-inf")  # sim time of the UTM's latest plan change for this UAV
 
@@ -342,13 +370,30 @@ class UavManagerNode:
             self._stream_error_told = True
             rospy.logerr(f"UAV {self.uav_id}: {stream.error}; the rows stay in memory for save_csv")
 
-    def _beat(self, _event) -> None:
+    def _beat(self) -> None:
         if self._runner is not None and not self._runner.is_alive():  # the beat says the manager runs, not the timer
             return
         try:
             self.alive.publish(Float64(rospy.get_time()))
         except rospy.ROSException:  # shutting down
             pass
+
+    def _beat_loop(self) -> None:
+        """A beat every BEAT_PERIOD simulated seconds until close(), as a rospy.Timer would beat, but woken by the
+        process's one watcher of the time instead of by every /clock message."""
+        next_beat = rospy.get_time() + BEAT_PERIOD
+        while not self._beat_stop.is_set():
+            try:
+                wait_until_sim_time(next_beat, stop=self._beat_stop)
+            except rospy.exceptions.ROSTimeMovedBackwardsException:
+                next_beat = rospy.get_time() + BEAT_PERIOD
+                continue
+            except rospy.ROSInterruptException:
+                return
+            if self._beat_stop.is_set():
+                return
+            self._beat()
+            next_beat = max(next_beat + BEAT_PERIOD, rospy.get_time())  # a late beat does not make up for lost ones
 
     def _on_algorithm_control(self, req) -> AlgorithmControlResponse:
         try:
@@ -390,7 +435,8 @@ class UavManagerNode:
     def run(self) -> str:
         self._runner = threading.current_thread()
         # The heartbeat runs in simulated time from a timer of its own: a long step does not delay it.
-        self.beat = rospy.Timer(rospy.Duration(BEAT_PERIOD), self._beat)
+        self.beat = threading.Thread(target=self._beat_loop, daemon=True, name=f"uav_{self.uav_id} beat")
+        self.beat.start()
         self.wait_for_own_pose()  # the action servers come up (the manager is "ready") only after it
         for server in self.servers.values():
             server.start()
@@ -404,8 +450,7 @@ class UavManagerNode:
 
     def close(self) -> None:
         """Stop beating and serving, and unregister every topic and service: in a host the process goes on."""
-        if self.beat is not None:
-            self.beat.shutdown()
+        self._beat_stop.set()
         if self.recorder.stream is not None:
             self.recorder.stream.close()
         self.introspection.stop()
