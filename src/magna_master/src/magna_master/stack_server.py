@@ -9,7 +9,8 @@ why) on stdout. Then it reads one SimulationRequest per stdin line, and for each
 
 1. resets the simulator (/magna/sim/reset) and the world node (/magna/world/reset) for the seed, and
    sets /magna/hyperparameters and the ground station's private parameters afresh;
-2. starts the ground station alone and supervises it as the cold supervisor supervises a launch
+2. starts the ground station alone (on a warm process that imported its modules during the previous
+   simulation, magna_common.warm_start) and supervises it as the cold supervisor supervises a launch
    (SupervisorCore: the termination service, the time limit, /magna/gs/stop, interruption; a death of
    a stack node, read from the stack's roslaunch log, ends it as a crash), and writes result.json;
 3. ends what is left with the simulation's token, and prints a SimulationReply saying whether the
@@ -40,6 +41,7 @@ from magna_common.ros_names import (
     UAL_IDS,
     WORLD_RESET,
 )
+from magna_common.warm_start import WarmStarter, cold_start
 from magna_master.launch_watch import RequiredDeathWatch
 from magna_master.stack import READY_TIMEOUT, SimulationReply, SimulationRequest
 from magna_master.supervisor import SupervisorCore, ros_stop_ground_station, termination_of
@@ -47,6 +49,8 @@ from magna_master.supervisor import SupervisorCore, ros_stop_ground_station, ter
 NODE_NAME = "magna_master_stack"
 GROUND_STATION_NODE = "/ground_station"
 RESET_TIMEOUT = 20.0  # wall s for one reset call
+GROUND_STATION_MODULES = ("magna_gs.ros_node",)  # what a warm ground station has imported before it is wanted
+FIRST_FLIGHT_AFTER = 2.0  # wall s from a ground station's start to its flight, until a simulation has said
 
 
 def parse_args(argv) -> argparse.Namespace:
@@ -79,6 +83,8 @@ class StackServer:
         self.deaths = RequiredDeathWatch(self.log_path)
         self.core: SupervisorCore | None = None
         self.stopping = threading.Event()
+        self.ground_stations: WarmStarter | None = None  # made once the stack is up
+        self.flight_after = FIRST_FLIGHT_AFTER  # the latest simulation's wall s from its start to its flight
 
     # the stack ---------------------------------------------------------------------------------------------------
     def start(self) -> str:
@@ -106,6 +112,8 @@ class StackServer:
                 except rospy.ROSException:
                     if time.monotonic() > deadline:
                         return f"{service} was not served within {READY_TIMEOUT:g} s"
+        self.ground_stations = WarmStarter(_ground_station_script(), GROUND_STATION_MODULES)
+        self.ground_stations.prepare()
         return ""
 
     def health(self) -> str:
@@ -118,6 +126,8 @@ class StackServer:
         return ""
 
     def stop(self) -> None:
+        if self.ground_stations is not None:
+            self.ground_stations.close()
         if self.launch is not None:
             end_process_group(self.launch, grace=5.0)
 
@@ -162,11 +172,18 @@ class StackServer:
             shutdown_timeout=request.shutdown_timeout,
             known=SimulationResult.from_dict(request.known, "the stack request"), token=request.token,
             stop_ground_station=ros_stop_ground_station(), env=env, deaths=self.deaths,
-            node=GROUND_STATION_NODE[1:])
+            node=GROUND_STATION_NODE[1:], start=self.ground_stations.start if self.ground_stations else cold_start)
         if self.stopping.is_set():
             core.request_stop()
-        core.run()
+        if self.ground_stations is not None:
+            # The next ground station imports while this one flies: in its set-up every core is busy.
+            self.ground_stations.prepare_in(self.flight_after)
+        result = core.run()
         self.core = None
+        if result.mission_wall_time > 0:
+            self.flight_after = result.wall_time - result.mission_wall_time + result.setup_wall_time
+        if self.ground_stations is not None:
+            self.ground_stations.prepare_in(0.0)  # now, if the flight was too short for it
         timeline["ended"] = round(time.monotonic() - started, 3)
         problem = self.health()
         return SimulationReply(ran=True, healthy=not problem, reason=problem, reset_s=reset_s, timeline=timeline)

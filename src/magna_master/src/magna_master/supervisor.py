@@ -59,6 +59,7 @@ from magna_common.records import (
 )
 from magna_common.ros_names import GS_STOP, MASTER_TERMINATION
 from magna_common.storage_tree import LOGS_DIR, RESULT_FILE
+from magna_common.warm_start import cold_start
 from magna_master.launch_watch import RequiredDeath, RequiredDeathWatch
 
 STOP_RETRY = 0.2  # wall s between calls of the stop service while it is not served yet
@@ -130,7 +131,8 @@ class SupervisorCore:
                  time_limit: float | None = None, stop_grace: float = 15.0, settle: float = 5.0,
                  shutdown_timeout: float = 10.0, known: SimulationResult | None = None, token: str | None = None,
                  stop_ground_station: Callable[[], bool] | None = None, poll: float = 0.05,
-                 env: dict | None = None, deaths: RequiredDeathWatch | None = None, node: str = ""):
+                 env: dict | None = None, deaths: RequiredDeathWatch | None = None, node: str = "",
+                 start: Callable[[list[str], Path, dict | None], subprocess.Popen] = cold_start):
         self.command = list(command)
         self.result_path = Path(result_path)
         self.log_path = Path(log_path)
@@ -152,6 +154,7 @@ class SupervisorCore:
         self._started_at = _now()
         self.launch: subprocess.Popen | None = None
         self.env = env  # the command's environment (None: ours)
+        self.start = start  # starts the command: output appended to the log, stdin empty, in its own session
         # the node the command is, when it is one node and not a launch (a persistent stack's ground station):
         # its exit before reporting is that node's death, said as roslaunch says a required node's
         self.node = node
@@ -194,10 +197,7 @@ class SupervisorCore:
         self.log_path.parent.mkdir(parents=True, exist_ok=True)
         self._started = time.monotonic()
         try:
-            with open(self.log_path, "ab") as log:
-                launch = self.launch = subprocess.Popen(self.command, stdout=log, stderr=subprocess.STDOUT,
-                                                        stdin=subprocess.DEVNULL, start_new_session=True,
-                                                        env=self.env)
+            launch = self.launch = self.start(self.command, self.log_path, self.env)
         except OSError as err:
             message = f"cannot start {self.command[0]!r}: {err.strerror or err}; check the launch command"
             result = self._result(START_FAILED, None, [], False, False, message=message)
