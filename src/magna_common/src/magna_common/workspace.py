@@ -47,3 +47,14 @@ class Workspace:
     def apt_packages(self) -> list[str]:
         lines = self.apt_packages_file.read_text().splitlines()
         return [line.split("#", 1)[0].strip() for line in lines if line.split("#", 1)[0].strip()]
+
+
+def node_script(package: str, node: str) -> str:
+    """The script `rosrun package node` runs (the built workspace's relay to the node's source); RuntimeError with the
+    fix when it is not built."""
+    import roslib.packages
+
+    found = roslib.packages.find_node(package, node)
+    if not found:
+        raise RuntimeError(f"rosrun {package} {node} is not found: build the workspace (catkin build)")
+    return found[0]

@@ -11,7 +11,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import subprocess
+import sys
 import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -63,6 +65,8 @@ from magna_common.ros_names import (
     manager_alive,
     ual,
 )
+from magna_common.warm_start import WarmStarter
+from magna_common.workspace import node_script
 from magna_gs.bag_recorder import BagRecorder, mission_topics
 from magna_gs.commands import CommandPlan, CommandRefused, Param, UavStatus, plan_command
 from magna_gs.critical_events import CriticalEvent, describe_all
@@ -130,6 +134,7 @@ MANAGER_MODES = ("host", "process")
 # split among several hosts, which the OS runs on every core.
 DEFAULT_MANAGERS_PER_HOST = 10
 SAVE_WORKERS = 16  # save_csv goals in flight at once at the end
+HOST_MODULES = ("magna_uav.host_node",)  # what a warm manager host has imported before it is wanted
 
 
 def clear_private_params(node_name: str) -> None:
@@ -176,6 +181,12 @@ class GroundStationServices:
         self.setup_errors: list[str] = []  # why the mission could not start (a MAVLink vehicle not there)
         self.failed_actions = FailedActions()  # every action that ended aborted, with why (the states add them)
         self.liveness = LivenessWatchdog(self._probe_manager)  # the managers' heartbeats
+        # The first manager host imports while the mission sets up (the world, the UAVs): one warm process, made
+        # for output to the log only (on screen it would have to be ours from the start).
+        self.host_starter: WarmStarter | None = None
+        if manager_output != "screen" and any(self._hosts(c) for c in mission.agents):
+            self.host_starter = WarmStarter(node_script("magna_uav", "uav_manager_host"), HOST_MODULES)
+            self.host_starter.prepare()
 
     def running_wall(self) -> float:
         """A wall clock (s) that stops while we hold the simulator still: a manager's silence while time stands
@@ -394,9 +405,15 @@ class GroundStationServices:
             self._host_ended_subs.append(rospy.Subscriber(ended_topic(host_name), UInt32MultiArray,
                                                           self._on_host_ended, callback_args=(host_name, set(group)),
                                                           queue_size=10))
-            output = self._child_output()
-            host = subprocess.Popen(["rosrun", "magna_uav", "uav_manager_host", f"__name:={host_name}"],
-                                    start_new_session=True, stdout=output, stderr=output)
+            if self.host_starter is not None:  # warm if it can; the output to the log, which is nowhere
+                host = self.host_starter.start([sys.executable, self.host_starter.script, f"__name:={host_name}"],
+                                               Path(os.devnull))
+                self.host_starter.close()  # one warm host: a swarm's others start cold
+                self.host_starter = None
+            else:
+                output = self._child_output()
+                host = subprocess.Popen(["rosrun", "magna_uav", "uav_manager_host", f"__name:={host_name}"],
+                                        start_new_session=True, stdout=output, stderr=output)
             for uav_id in group:
                 self.managers[uav_id] = host
 
@@ -467,6 +484,9 @@ class GroundStationServices:
     # --- the end --------------------------------------------------------------------------
     def stop_managers(self, grace: float = 10.0) -> None:
         self.liveness.stop()  # they stop on purpose now
+        if self.host_starter is not None:  # prepared for a host that never started
+            self.host_starter.close()
+            self.host_starter = None
         lost_ids = {uav_id for uav_id in self.managers if self.lost_manager(uav_id) is not None}
         running = {process.pid for uav_id, process in self.managers.items() if uav_id not in lost_ids}
         ended: set[int] = set()  # processes ended here (a host's pid once)

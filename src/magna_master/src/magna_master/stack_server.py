@@ -42,6 +42,7 @@ from magna_common.ros_names import (
     WORLD_RESET,
 )
 from magna_common.warm_start import WarmStarter, cold_start
+from magna_common.workspace import node_script
 from magna_master.launch_watch import RequiredDeathWatch
 from magna_master.stack import READY_TIMEOUT, SimulationReply, SimulationRequest
 from magna_master.supervisor import SupervisorCore, ros_stop_ground_station, termination_of
@@ -112,7 +113,7 @@ class StackServer:
                 except rospy.ROSException:
                     if time.monotonic() > deadline:
                         return f"{service} was not served within {READY_TIMEOUT:g} s"
-        self.ground_stations = WarmStarter(_ground_station_script(), GROUND_STATION_MODULES)
+        self.ground_stations = WarmStarter(node_script("magna_gs", "ground_station"), GROUND_STATION_MODULES)
         self.ground_stations.prepare()
         return ""
 
@@ -164,7 +165,7 @@ class StackServer:
         env = dict(os.environ)
         env[TOKEN_ENV] = request.token
         env["ROS_LOG_DIR"] = request.ros_log_dir
-        command = [sys.executable, _ground_station_script(), f"__name:={GROUND_STATION_NODE[1:]}"]
+        command = [sys.executable, node_script("magna_gs", "ground_station"), f"__name:={GROUND_STATION_NODE[1:]}"]
         core = self.core = SupervisorCore(
             command, Path(request.result), Path(request.log),
             data_dir=Path(request.data_dir) if request.data_dir else None,
@@ -193,15 +194,6 @@ class StackServer:
         core = self.core
         if core is not None:
             core.request_stop()
-
-
-def _ground_station_script() -> str:
-    import roslib.packages
-
-    found = roslib.packages.find_node("magna_gs", "ground_station")
-    if not found:
-        raise RuntimeError("rosrun magna_gs ground_station is not found: build the workspace (catkin build)")
-    return found[0]
 
 
 def main(argv=None) -> int:
