@@ -81,3 +81,18 @@ def test_closing_ends_the_prepared_process_and_the_preparation_to_come(starter):
     starter.prepare_in(30)
     starter.close()
     assert starter.prepared is None  # the timer was cancelled: nothing is started later
+
+
+def test_a_warm_rospy_takes_the_remappings_of_the_command_not_those_of_its_import(tmp_path):
+    # rospy reads __name:= and the other remappings at its import; a warm node must still get its own name
+    script = tmp_path / "named.py"
+    script.write_text("import rospy.names\nprint(rospy.names.get_mappings().get('__name'), flush=True)\n")
+    starter = WarmStarter(str(script), ["rospy"])
+    try:
+        starter.prepare()
+        log = tmp_path / "named.log"
+        process = starter.start([sys.executable, str(script), "__name:=uav_manager_host_1"], log)
+        assert process.wait(timeout=60) == 0 and starter.warm_starts == 1
+        assert log.read_text().split() == ["uav_manager_host_1"]
+    finally:
+        starter.close()

@@ -170,6 +170,8 @@ def _run(modules: Sequence[str]) -> None:
     with open(os.devnull, "rb") as nothing:
         os.dup2(nothing.fileno(), 0)
     sys.argv = [order["script"], *order["argv"]]
+    if "rospy.names" in sys.modules:  # rospy reads the remappings (__name:=, __log:=) from sys.argv at its import
+        sys.modules["rospy.names"].reload_mappings(sys.argv)
     runpy.run_path(order["script"], run_name="__main__")
 
 
