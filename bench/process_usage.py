@@ -45,6 +45,9 @@ KINDS = [
     ("__name:=magna_world", "world"),
     ("magna_worlds/world", "world"),
     ("orca3d_server", "orca"),
+    # a warm start (magna_common.warm_start) keeps the command line it was prepared with: the modules it imported
+    ("warm_start magna_gs", "ground station"),
+    ("warm_start magna_uav", "managers (host or processes)"),
     ("ground_station", "ground station"),
     ("uav_manager", "managers (host or processes)"),
     ("rosbag/record", "rosbag"),

@@ -31,6 +31,8 @@ def usage_module():
      "managers (host or processes)"),
     ("/usr/bin/python3 /work/main/devel/lib/magna_uav/uav_manager __name:=uav_2_manager _id:=2",
      "managers (host or processes)"),
+    ("/work/main/.venv/bin/python -m magna_common.warm_start magna_gs.ros_node", "ground station"),
+    ("/work/main/.venv/bin/python -m magna_common.warm_start magna_uav.host_node", "managers (host or processes)"),
     ("/usr/lib/rosbag/record --quiet -O /d/simulation.bag /tf /tf_static", "rosbag"),
     ("bash /usr/bin/rosrun magna_uav uav_manager_host __name:=uav_manager_host", "rosrun start-up"),
     ("/usr/bin/python3 /usr/bin/catkin_find --without-underlays --libexec --share magna_uav", "rosrun start-up"),
