@@ -62,6 +62,8 @@ def _filled(msg_type):
             setattr(msg, slot, [0.5, -2.0])
         elif slot_type == "bool[]":
             setattr(msg, slot, [True, False])
+        elif slot_type == "uint8[]":  # rospy hands a uint8[] over as bytes
+            setattr(msg, slot, bytes([7, 8]))
         elif slot_type.startswith(("int", "uint")) and slot_type.endswith("[]"):
             setattr(msg, slot, [7, 8])
         elif slot_type == "string":
