@@ -77,7 +77,8 @@ def make_config(batch_inputs, tmp_path):
 
     def make(mode="ok", n_iter=2, **overrides):
         command = overrides.pop("launch_command", None) or stand_in_command(
-            mode, sleep=overrides.pop("sleep", 0.2), fail_seeds=overrides.pop("fail_seeds", ""))
+            mode, sleep=overrides.pop("sleep", 0.2), fail_seeds=overrides.pop("fail_seeds", ""),
+            extra=overrides.pop("stand_in_extra", ()))
         values = dict(inputs=batch_inputs, n_iter=n_iter, data_root=tmp_path / "data", launch_command=command,
                       time_limit=20.0, stop_grace=2.0, settle=2.0, shutdown_timeout=2.0)
         values.update(overrides)

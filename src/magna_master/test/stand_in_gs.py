@@ -16,6 +16,10 @@ children's) in DIR/stand_in.json (or --report), then per MODE:
   hang      never call; no /magna/gs/stop either
   stoppable never call by itself; serve /magna/gs/stop, and when it is called report 'preempted' and exit
   deaf      like hang, and ignore SIGINT and SIGTERM (only SIGKILL ends it)
+
+--crash-seeds 3: those seeds crash (as mode crash) whatever the mode. --rendezvous DIR --rendezvous-seeds 1,2:
+those seeds each leave a mark in DIR and wait (up to 60 s, then crash) until every one of them has: they pass
+only when they run at the same time.
 """
 import argparse
 import json
@@ -45,6 +49,9 @@ def main() -> int:
     parser.add_argument("--subworld", default="")
     parser.add_argument("--worlds-path", default="")
     parser.add_argument("--rtf", default="")
+    parser.add_argument("--crash-seeds", default="")
+    parser.add_argument("--rendezvous", default="")
+    parser.add_argument("--rendezvous-seeds", default="")
     args = parser.parse_args()
 
     if args.mode == "deaf":
@@ -111,8 +118,21 @@ def main() -> int:
         terminate(success=False, outcome="preempted", message="stopped by the Master", sim_duration=3.0, collisions=0)
         return 0
 
+    meeting = {int(s) for s in args.rendezvous_seeds.split(",") if s.strip()}
+    if args.rendezvous and args.seed in meeting:
+        place = Path(args.rendezvous)
+        place.mkdir(parents=True, exist_ok=True)
+        (place / f"seed_{args.seed}").touch()
+        deadline = time.monotonic() + 60
+        while {int(p.name.split("_")[1]) for p in place.glob("seed_*")} < meeting:
+            if time.monotonic() > deadline:
+                print(f"stand-in: seeds {sorted(meeting)} never ran at the same time", flush=True)
+                return 4
+            nap(0.05)
+        seen["met"] = sorted(meeting)
+        report()
     nap(args.long_sleep if args.seed == args.sleep_seed else args.sleep)
-    if args.mode == "crash":
+    if args.mode == "crash" or args.seed in {int(s) for s in args.crash_seeds.split(",") if s.strip()}:
         print("stand-in: something broke", flush=True)
         return 3
 

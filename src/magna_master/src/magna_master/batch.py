@@ -24,6 +24,12 @@ Cold (--cold-start, --rviz, --fleet, --launch-command, or a stack that could not
    every process still carrying the simulation's token is killed, the master is stopped, and
    the summary row is written.
 
+Job slots (--jobs N): N slots, each in a thread of its own, take the next simulation id in turn. Each slot
+keeps its own persistent stack (its own master on its own port, simulator, world node and ORCA-3D) or runs
+its simulations cold, so simulations at once share nothing but the dataset folder. What they share
+(summary.csv, the results, the progress bar, on_simulation) is written under one lock; summary.csv stays in
+id order. One simulation's failure stops no other; a stop (Ctrl-C, a full disk) reaches every slot.
+
 Seeds: simulation m runs with seed S+m (S from --seed, default 0), so appended simulations
 get new seeds and a dataset can be re-run exactly.
 
@@ -79,6 +85,11 @@ def preflight(config: BatchConfig) -> None:
     """Check what the batch needs before anything is created or started."""
     if config.n_iter < 1:
         raise BatchError(f"--n-iter must be >= 1, got {config.n_iter}")
+    if config.jobs < 1:
+        raise BatchError(f"--jobs must be >= 1, got {config.jobs}")
+    if config.jobs > 1 and config.fleet:
+        raise BatchError(f"--jobs {config.jobs} with --fleet: the fleet's autopilots fly one mission at a time; "
+                         "drop --jobs (or give --jobs 1)")
     if config.n_dataset < 0:
         raise BatchError(f"--dataset must be >= 0, got {config.n_dataset}")
     if config.time_limit is not None and config.time_limit < 0:
@@ -155,20 +166,45 @@ class _StopFlag:
         return self.event.is_set()
 
 
+class _Slot:
+    """One job slot: the simulations it runs one after another, on a persistent stack of its own."""
+
+    def __init__(self, index: int, cold_reasons: list[str]):
+        self.index = index
+        self.stack: Stack | None = None
+        self.cold_reasons = list(cold_reasons)  # why its simulations start cold (empty: a warm stack)
+        self.disk_full = ""  # why its running simulation was stopped for its disk (empty: it was not)
+
+
 class _DiskWatch:
     """Looks at the free space under a running simulation's folder at most every `disk_check_period`."""
 
-    def __init__(self, batch: Batch, m: int, data_dir: Path | None):
-        self.batch, self.m, self.data_dir = batch, m, data_dir
+    def __init__(self, batch: Batch, slot: _Slot, m: int, data_dir: Path | None):
+        self.batch, self.slot, self.m, self.data_dir = batch, slot, m, data_dir
         self.next_check = 0.0
 
     def full(self) -> bool:
-        batch = self.batch
+        batch, slot = self.batch, self.slot
         now = time.monotonic()
-        if self.data_dir is not None and not batch.disk_full and now >= self.next_check:
+        if self.data_dir is not None and not slot.disk_full and now >= self.next_check:
             self.next_check = now + batch.disk_check_period
-            batch.disk_full = batch._disk_full(self.m, self.data_dir)
-        return bool(batch.disk_full)
+            slot.disk_full = batch._disk_full(self.m, self.data_dir)
+        return bool(slot.disk_full)
+
+
+@dataclasses.dataclass
+class RunningBatch:
+    """What the job slots of one batch share while it runs (under Batch._shared)."""
+
+    plan: storage.StoragePlan
+    bar: Any  # the tqdm progress bar
+    pending: list[int] = dataclasses.field(default_factory=list)
+    results: list[SimulationResult] = dataclasses.field(default_factory=list)
+    halted: bool = False  # a simulation was interrupted: start no other
+    error: BaseException | None = None  # what a slot raised; raised again by the batch
+
+    def __post_init__(self):
+        self.pending = list(self.plan.ids)
 
 
 class _RunCold:
@@ -196,12 +232,14 @@ class Batch:
         self.on_simulation = on_simulation
         self.stop = _StopFlag(self.out)
         self.storage_error = ""  # why the batch stopped early for its storage (empty: it did not)
-        self.disk_full = ""  # why the running simulation was stopped for its disk (empty: it was not)
         self.cold_reasons = stack.cold_reasons(config)  # why each simulation starts cold (empty: a warm stack)
-        self.stack: Stack | None = None
         self.policy = StackPolicy()
+        # One lock for what the job slots share: summary.csv, the results, the progress bar, on_simulation.
+        self._shared = threading.Lock()
 
-    def run(self) -> BatchResult:
+    def run(self, plan: storage.StoragePlan | None = None) -> BatchResult:
+        """Run the batch; `plan`: the simulation ids and folder decided already (a cluster worker runs one
+        simulation of a client's batch), instead of planning them here from the config."""
         config = self.config
         preflight(config)
         lock = None
@@ -210,7 +248,9 @@ class Batch:
         try:
             if config.save_data:
                 lock = storage.DatasetLock(config.dataset_dir).acquire()
-            plan = storage.plan_storage(config.dataset_dir, config.n_iter, config.policy, config.save_data, self.ask)
+            if plan is None:
+                plan = storage.plan_storage(config.dataset_dir, config.n_iter, config.policy, config.save_data,
+                                            self.ask)
             if not plan.save and lock is not None:
                 lock.release()  # skip-save: nothing will be written there
                 lock = None
@@ -230,47 +270,83 @@ class Batch:
         from tqdm import tqdm
 
         config = self.config
-        results: list[SimulationResult] = []
         started = time.monotonic()
         bar = tqdm(total=len(plan.ids), unit="sim", desc=f"{config.inputs.mission}/{config.inputs.submission}",
                    file=self.out, disable=(None if self.progress is None else not self.progress),
                    dynamic_ncols=True, leave=True)
+        run = RunningBatch(plan, bar)
+        slots = [_Slot(i, self.cold_reasons) for i in range(min(config.jobs, len(plan.ids)))]
         try:
-            for m in plan.ids:
-                if self.stop:
-                    break
-                try:
-                    if plan.dataset_dir is not None:  # the disk may have filled since the last simulation
-                        storage.check_writable(plan.dataset_dir, config.min_free_mb)
-                    result = self._simulation(m, plan)
-                except StorageError as err:
-                    self.storage_error = f"simulation {m} was not started: {err}"
-                    break
-                if result is None:  # stopped before it started
-                    break
-                results.append(result)
-                bar.update(1)
-                done = [r for r in results if not r.interrupted]
-                speed = BatchResult(config, plan, results, False, 0.0).speed
-                bar.set_postfix_str(f"ok {sum(r.success for r in done)}/{len(done)}, {speed:.1f}x sim/wall")
-                if bar.disable:
-                    print(f"simulation {m} ({len(results)}/{len(plan.ids)}): {status(result)}, "
-                          f"{result.sim_duration:.1f} sim s in {result.wall_time:.1f} s", file=self.out, flush=True)
-                if self.on_simulation is not None:
-                    self.on_simulation(result)
-                if result.interrupted:
-                    break
-                if self.storage_error:
-                    break
+            if len(slots) == 1:
+                self._work(slots[0], run)
+            else:
+                self._work_in_threads(slots, run)
         finally:
             bar.close()
-            self._stop_stack()
+        if run.error is not None:
+            raise run.error
+        results = sorted(run.results, key=lambda r: r.id or 0)
         return BatchResult(config, plan, results, bool(self.stop), time.monotonic() - started, self.storage_error)
 
-    def _simulation(self, m: int, plan: storage.StoragePlan) -> SimulationResult | None:
+    def _work_in_threads(self, slots: list[_Slot], run: RunningBatch) -> None:
+        """Each slot in a thread of its own; this (main) thread keeps taking the stop signals meanwhile."""
+        threads = [threading.Thread(target=self._work, args=(slot, run), name=f"magna-job-{slot.index + 1}",
+                                    daemon=True) for slot in slots]
+        for thread in threads:
+            thread.start()
+        for thread in threads:
+            while thread.is_alive():
+                thread.join(0.2)  # a short join: the signal handlers run in between
+
+    def _work(self, slot: _Slot, run: RunningBatch) -> None:
+        """One slot's simulations, one after another, until none is left or the batch must stop."""
+        try:
+            while (m := self._next(run)) is not None:
+                try:
+                    if run.plan.dataset_dir is not None:  # the disk may have filled since the last simulation
+                        storage.check_writable(run.plan.dataset_dir, self.config.min_free_mb)
+                    result = self._simulation(slot, m, run.plan)
+                except StorageError as err:
+                    with self._shared:
+                        self.storage_error = self.storage_error or f"simulation {m} was not started: {err}"
+                    return
+                if result is None:  # stopped before it started
+                    return
+                self._finished(result, run)
+        except BaseException as error:  # noqa: BLE001 -- raised again by _loop, in the batch's thread
+            with self._shared:
+                run.error = run.error or error
+        finally:
+            self._stop_stack(slot)
+
+    def _next(self, run: RunningBatch) -> int | None:
+        """The next simulation to start, or None when the batch must not start another."""
+        with self._shared:
+            if self.stop or self.storage_error or run.halted or run.error is not None or not run.pending:
+                return None
+            return run.pending.pop(0)
+
+    def _finished(self, result: SimulationResult, run: RunningBatch) -> None:
+        config, bar = self.config, run.bar
+        with self._shared:
+            run.results.append(result)
+            bar.update(1)
+            done = [r for r in run.results if not r.interrupted]
+            speed = BatchResult(config, run.plan, run.results, False, 0.0).speed
+            bar.set_postfix_str(f"ok {sum(r.success for r in done)}/{len(done)}, {speed:.1f}x sim/wall")
+            if bar.disable:
+                print(f"simulation {result.id} ({len(run.results)}/{len(run.plan.ids)}): {status(result)}, "
+                      f"{result.sim_duration:.1f} sim s in {result.wall_time:.1f} s", file=self.out, flush=True)
+            if self.on_simulation is not None:
+                self.on_simulation(result)
+            if result.interrupted:
+                run.halted = True
+
+    def _simulation(self, slot: _Slot, m: int, plan: storage.StoragePlan) -> SimulationResult | None:
         if plan.dataset_dir is not None:  # plan.save
             try:
-                work_dir = storage.prepare_simulation_dir(plan, m)
+                with self._shared:  # it may remove an old summary row
+                    work_dir = storage.prepare_simulation_dir(plan, m)
             except OSError as err:
                 raise StorageError(storage.describe_write_error(plan.dataset_dir, err)) from None
             data_dir: Path | None = work_dir
@@ -279,7 +355,7 @@ class Batch:
             data_dir = None
         try:
             try:
-                result = self._supervise(m, plan, work_dir, data_dir)
+                result = self._supervise(slot, m, plan, work_dir, data_dir)
             except OSError as err:  # its logs folder or supervisor.log could not be made: nothing ran
                 raise StorageError(storage.describe_write_error(work_dir, err)) from None
             if result is None:
@@ -287,7 +363,8 @@ class Batch:
             written = storage.read_result(work_dir / RESULT_FILE)
             if plan.dataset_dir is not None and written is not None and written.final:  # a row only beside it
                 try:
-                    storage.update_summary(plan.dataset_dir, result)
+                    with self._shared:
+                        storage.update_summary(plan.dataset_dir, result)
                 except OSError as err:  # the previous summary.csv stays whole (an atomic write)
                     self._storage_failed(m, f"its row of {SUMMARY_FILE} could not be written", plan.dataset_dir, err)
             return dataclasses.replace(result, directory=work_dir if plan.save else None)
@@ -295,13 +372,13 @@ class Batch:
             if not plan.save:
                 shutil.rmtree(work_dir, ignore_errors=True)
 
-    def _supervise(self, m: int, plan: storage.StoragePlan, work_dir: Path,
+    def _supervise(self, slot: _Slot, m: int, plan: storage.StoragePlan, work_dir: Path,
                    data_dir: Path | None) -> SimulationResult | None:
-        if not self.cold_reasons:
-            result = self._supervise_warm(m, plan, work_dir, data_dir)
+        if not slot.cold_reasons:
+            result = self._supervise_warm(slot, m, plan, work_dir, data_dir)
             if not isinstance(result, _RunCold):
                 return result
-        return self._supervise_cold(m, plan, work_dir, data_dir)
+        return self._supervise_cold(slot, m, plan, work_dir, data_dir)
 
     def _known(self, m: int, plan: storage.StoragePlan, data_dir: Path | None, **extra) -> SimulationResult:
         """result.json's fields known before simulation m runs."""
@@ -310,21 +387,21 @@ class Batch:
                                 world_file=config.inputs.world_file, mission_file=config.inputs.mission_file,
                                 data_dir=data_dir, extra=extra)
 
-    def _supervise_warm(self, m: int, plan: storage.StoragePlan, work_dir: Path,
+    def _supervise_warm(self, slot: _Slot, m: int, plan: storage.StoragePlan, work_dir: Path,
                         data_dir: Path | None) -> SimulationResult | None | _RunCold:
-        """Simulation m on the batch's persistent stack (started now if there is none); RUN_COLD when the
+        """Simulation m on the slot's persistent stack (started now if there is none); RUN_COLD when the
         stack could not run it, so that it runs cold instead."""
         config = self.config
         logs = work_dir / LOGS_DIR
         logs.mkdir(exist_ok=True)
-        fresh = self.stack is None
-        if self.stack is None:
+        fresh = slot.stack is None
+        if slot.stack is None:
             stack_token = uuid.uuid4().hex
             try:
-                self.stack = Stack(stack.server_argv(config), logs / "stack", stack_token).start()
+                slot.stack = Stack(stack.server_argv(config), logs / "stack", stack_token).start()
             except StackError as err:
-                self.stack = None
-                self.cold_reasons.append(str(err))
+                slot.stack = None
+                slot.cold_reasons.append(str(err))
                 print(f"magna run: simulation {m}: {err}; the batch goes on with a cold start per simulation",
                       file=self.out, flush=True)
                 return RUN_COLD
@@ -334,7 +411,7 @@ class Batch:
         result_path = work_dir / RESULT_FILE
         token = uuid.uuid4().hex
         known = self._known(m, plan, data_dir, stack={"start": "cold" if fresh else "warm",
-                                                      "index": self.stack.simulations + 1})
+                                                      "index": slot.stack.simulations + 1})
         request = stack.SimulationRequest(
             result=str(result_path), log=str(logs / "launch.log"), data_dir=str(data_dir or ""),
             ros_log_dir=str(logs / "ros"), seed=config.seed_of(m),
@@ -343,28 +420,29 @@ class Batch:
             ground_station=stack.ground_station_params(config, data_dir, plan), known=known.to_dict(), token=token,
             time_limit=config.time_limit or 0.0, stop_grace=config.stop_grace, settle=config.settle,
             shutdown_timeout=config.shutdown_timeout)
-        self.disk_full = ""
-        disk = _DiskWatch(self, m, data_dir)
-        reply = self.stack.simulate(request, self._supervisor_budget(), lambda: bool(self.stop) or disk.full())
+        slot.disk_full = ""
+        disk = _DiskWatch(self, slot, m, data_dir)
+        reply = slot.stack.simulate(request, self._supervisor_budget(), lambda: bool(self.stop) or disk.full())
         leftovers = kill_tagged(token)
         if not reply.ran:
-            self._stop_stack()
+            self._stop_stack(slot)
             print(f"magna run: simulation {m}: the stack could not run it ({reply.reason}); it runs cold",
                   file=self.out, flush=True)
             return RUN_COLD
-        result = self._settle_result(m, work_dir, result_path, known, self.stack.server, not reply.healthy,
-                                     leftovers, its_log=f"{self.stack.logs / 'stack_server.log'}")
+        result = self._settle_result(slot, m, work_dir, result_path, known, slot.stack.server, not reply.healthy,
+                                     leftovers, its_log=f"{slot.stack.logs / 'stack_server.log'}")
         why = self.policy.why_restart(result, reply)
         if why:
-            self._stop_stack()
+            self._stop_stack(slot)
         return result
 
-    def _stop_stack(self) -> None:
-        if self.stack is not None:
-            self.stack.stop()
-            self.stack = None
+    @staticmethod
+    def _stop_stack(slot: _Slot) -> None:
+        if slot.stack is not None:
+            slot.stack.stop()
+            slot.stack = None
 
-    def _supervise_cold(self, m: int, plan: storage.StoragePlan, work_dir: Path,
+    def _supervise_cold(self, slot: _Slot, m: int, plan: storage.StoragePlan, work_dir: Path,
                         data_dir: Path | None) -> SimulationResult | None:
         config = self.config
         logs = work_dir / LOGS_DIR
@@ -395,24 +473,24 @@ class Batch:
             with open(logs / "supervisor.log", "ab") as supervisor_log:
                 supervisor = master.spawn(argv, env=env, stdout=supervisor_log, stderr=supervisor_log,
                                           stdin=subprocess.DEVNULL)
-            hung = self._wait_supervisor(supervisor, m, data_dir)
+            hung = self._wait_supervisor(slot, supervisor, m, data_dir)
         finally:
             if supervisor is not None and supervisor.poll() is None:
                 end_process_group(supervisor, grace=2.0)
             leftovers = kill_tagged(token)
             master.stop()
-        return self._settle_result(m, work_dir, result_path, known, supervisor, hung, leftovers)
+        return self._settle_result(slot, m, work_dir, result_path, known, supervisor, hung, leftovers)
 
-    def _settle_result(self, m: int, work_dir: Path, result_path: Path, known: SimulationResult,
+    def _settle_result(self, slot: _Slot, m: int, work_dir: Path, result_path: Path, known: SimulationResult,
                        supervisor, hung: bool, leftovers: list[str],
                        its_log: str = "logs/supervisor.log") -> SimulationResult:
         """result.json as the supervisor left it, completed with what only the batch knows (a disk that
         filled, a supervisor that died or hung before writing it, leftovers killed), and written back."""
         result = storage.read_result(result_path)
         changed = False
-        if self.disk_full and result is not None and result.final and not result.reported:
+        if slot.disk_full and result is not None and result.final and not result.reported:
             # the supervisor wrote its result (there was room for it): say why it was stopped
-            result = dataclasses.replace(result, message=self.disk_full)
+            result = dataclasses.replace(result, message=slot.disk_full)
             changed = True
         if result is None or not result.final:
             changed = True
@@ -424,11 +502,11 @@ class Batch:
             result = dataclasses.replace(partial, final=True, supervisor_pid=supervisor.pid if supervisor else None,
                                          message=(partial.message + "; " if reported else "") + ended)
             if not reported:
-                termination = INTERRUPTED if self.stop or self.disk_full else SUPERVISOR_FAILED
+                termination = INTERRUPTED if self.stop or slot.disk_full else SUPERVISOR_FAILED
                 result = dataclasses.replace(result, success=False, outcome=termination, termination=termination,
                                              sim_duration=0.0, collisions=0, reported=False)
-                if self.disk_full:
-                    result = dataclasses.replace(result, message=f"{self.disk_full}; {result.message}")
+                if slot.disk_full:
+                    result = dataclasses.replace(result, message=f"{slot.disk_full}; {result.message}")
         if leftovers:
             result = dataclasses.replace(
                 result, leftover_processes_killed=(*result.leftover_processes_killed, *leftovers))
@@ -444,10 +522,12 @@ class Batch:
     def _storage_failed(self, m: int, what: str, folder: Path, err: OSError) -> None:
         """A write of the batch failed (a full disk, a file system gone read-only): the batch stops."""
         failure = f"{what}: {storage.describe_write_error(folder, err)}"
-        if self.storage_error:  # the disk filled during the simulation: that was said first
-            self.storage_error = f"{self.storage_error}; {failure}"
-        else:
-            self.storage_error = f"simulation {m}: {failure}; the batch stopped there, then continue it with --append"
+        with self._shared:
+            if self.storage_error:  # the disk filled during the simulation: that was said first
+                self.storage_error = f"{self.storage_error}; {failure}"
+            else:
+                self.storage_error = (f"simulation {m}: {failure}; the batch stopped there, then continue it "
+                                      "with --append")
         print(f"magna run: simulation {m}: {failure}", file=self.out, flush=True)
 
     def supervisor_argv(self, result_path: Path, logs: Path, data_dir: Path | None, known: dict,
@@ -466,14 +546,14 @@ class Batch:
         return ((config.time_limit or math.inf) + config.stop_grace + config.settle
                 + 3 * config.shutdown_timeout + self.supervisor_margin)
 
-    def _wait_supervisor(self, supervisor, m: int, data_dir: Path | None) -> bool:
+    def _wait_supervisor(self, slot: _Slot, supervisor, m: int, data_dir: Path | None) -> bool:
         """Wait for the supervisor; on a stop request, or a disk that fills up under `data_dir`, forward SIGINT;
         True when it had to be given up as hung."""
         config = self.config
         deadline = time.monotonic() + self._supervisor_budget()
         stop_deadline = None
-        self.disk_full = ""
-        disk = _DiskWatch(self, m, data_dir)
+        slot.disk_full = ""
+        disk = _DiskWatch(self, slot, m, data_dir)
         while supervisor.poll() is None:
             now = time.monotonic()
             if (self.stop or disk.full()) and stop_deadline is None:
@@ -496,9 +576,11 @@ class Batch:
             return ""
         if free >= min(FULL_DISK_MB, self.config.min_free_mb) * 1e6:
             return ""
-        self.storage_error = (f"simulation {m} was stopped: the disk of {data_dir} filled up while it ran "
-                              f"({free // 1000} kB free); free space there, then continue the dataset with --append")
-        print(f"magna run: {self.storage_error}", file=self.out, flush=True)
+        why = (f"simulation {m} was stopped: the disk of {data_dir} filled up while it ran ({free // 1000} kB free); "
+               "free space there, then continue the dataset with --append")
+        with self._shared:
+            self.storage_error = self.storage_error or why
+        print(f"magna run: {why}", file=self.out, flush=True)
         return f"stopped by the batch: the disk filled up ({free // 1000} kB free)"
 
     def _discard(self, work_dir: Path, plan: storage.StoragePlan) -> None:

@@ -60,6 +60,7 @@ class BatchConfig:
     cold_start: bool = False
     # host: the UAV managers of the ground station share one process (a thread each); process: one each
     managers: str = "host"
+    jobs: int = 1  # simulations run at once, each with its own master, simulator and stack
 
     @property
     def key(self) -> StorageKey:

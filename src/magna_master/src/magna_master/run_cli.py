@@ -119,6 +119,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--managers", choices=("host", "process"), default="host",
                         help="host (default): the UAV managers run in one process, a thread each, with the same "
                              "ROS names; process: one process per manager, as a real UAV's companion computer runs it")
+    parallel = parser.add_argument_group("running simulations at once")
+    parallel.add_argument("--jobs", type=int, default=1, metavar="N",
+                          help="simulations run at once on this machine, each with its own ROS master, simulator "
+                               "and stack (default: 1). A 2-UAV simulation keeps about one core busy")
     parser.add_argument("--cold-start", action="store_true",
                         help="a fresh ROS master and launch for every simulation; by default a batch keeps one "
                              "stack (master, simulator, world node, ORCA-3D) up and resets it between its "
@@ -175,7 +179,7 @@ def build_config(args):
                        data_root=args.data_root, policy=args.policy,
                        time_limit=args.time_limit or None, button_timeout=args.button_timeout,
                        launch_command=command, rviz=args.rviz, min_free_mb=args.min_free_space,
-                       cold_start=args.cold_start, managers=args.managers)
+                       cold_start=args.cold_start, managers=args.managers, jobs=args.jobs)
 
 
 def check_fleet(mission_file: Path, fleet_file: Path | None, rtf: str) -> tuple[Path | None, str]:

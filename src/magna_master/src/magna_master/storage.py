@@ -105,10 +105,11 @@ def read_summary(dataset_dir: Path) -> list[SummaryRow]:
 
 
 def update_summary(dataset_dir: Path, result: SimulationResult) -> Path:
-    """Put (or replace) the row of `result` in summary.csv, keeping every other row."""
+    """Put (or replace) the row of `result` in summary.csv, keeping every other row; rows in id order."""
     row = SummaryRow.of(result)
     rows = [r for r in read_summary(dataset_dir) if r.id != row.id]
-    return SummaryRow.write(Path(dataset_dir) / SUMMARY_FILE, [*rows, row])
+    # in id order: simulations run at once (--jobs, --cluster) end in any order
+    return SummaryRow.write(Path(dataset_dir) / SUMMARY_FILE, sorted([*rows, row], key=lambda r: r.id or 0))
 
 
 def remove_summary_row(dataset_dir: Path, m: int) -> None:
