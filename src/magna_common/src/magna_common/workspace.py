@@ -58,3 +58,31 @@ def node_script(package: str, node: str) -> str:
     if not found:
         raise RuntimeError(f"rosrun {package} {node} is not found: build the workspace (catkin build)")
     return found[0]
+
+
+def magna_version(root: Path | None = None) -> str:
+    """This checkout's MAGNA version: the packages' version and its git commit, with a digest of uncommitted
+    changes when there are some ('0.1.0 eb8d783a9ab9+3f2a01bc'); two installs with the same string run the
+    same code. Without git (an exported tree) only the packages' version is known."""
+    import hashlib
+    import re
+    import subprocess
+
+    root = root or find_root()
+    package_xml = (root / "src" / "magna_master" / "package.xml").read_text()
+    found = re.search(r"<version>\s*([^<\s]+)\s*</version>", package_xml)
+    version = found.group(1) if found else "unknown"
+
+    def git(*args: str) -> str | None:
+        try:
+            done = subprocess.run(["git", "-C", str(root), *args], capture_output=True, timeout=20)
+        except (OSError, subprocess.TimeoutExpired):
+            return None
+        return done.stdout.decode(errors="replace") if done.returncode == 0 else None
+
+    commit = (git("rev-parse", "HEAD") or "").strip()
+    if not commit:
+        return f"{version} (no git commit)"
+    changes = git("diff", "HEAD", "--", "src", "worlds", "missions", "scripts", "requirements.txt")
+    local = f"+{hashlib.sha256(changes.encode()).hexdigest()[:8]}" if changes else ""
+    return f"{version} {commit[:12]}{local}"

@@ -23,7 +23,7 @@ from magna_common.errors import UsageError
 from magna_common.workspace import Workspace
 
 HELP = ("check the installation (packages, venv, build, message API) and run a live ROS round trip; "
-        "or, with --mavlink URL, a MAVLink vehicle's link")
+        "or, with --mavlink URL, a MAVLink vehicle's link; or, with --cluster ADDRESS, a Dask cluster's workers")
 MAVLINK_TIMEOUT = 5.0  # s for the heartbeat, then as long again for the position and the home
 EXAMPLES = """\
 examples:
@@ -31,9 +31,14 @@ examples:
   magna doctor --mavlink udpin:0.0.0.0:14540        # [hardware] PX4 SITL instance 0, or a vehicle sending there
   magna doctor --mavlink udpout:127.0.0.1:14580 --timeout 10    # [hardware] a vehicle that waits to be spoken to
   magna doctor --mavlink /dev/ttyACM0,57600          # [hardware] an autopilot on USB or a telemetry radio
+  magna doctor --cluster tcp://10.0.0.5:8786          # the workers of a Dask scheduler [synopsis]
 
 With --mavlink only the link is checked: exit status 0 when every line is ok, 1 when one fails,
 2 when the URL is not one (forms: udpin:HOST:PORT, udpout:HOST:PORT, tcp:HOST:PORT, DEVICE[,BAUD]).
+
+With --cluster each worker of the scheduler is listed: its host, cores, threads (simulations at once), MAGNA
+version and readiness (ROS on PATH, the workspace built, room in its temporary folder, the client's
+version). Exit status 0 when every worker is ready, 1 when one is not, 2 when no scheduler answers.
 """
 
 # The checksums of GRVC UAL v3: real UAL servers and clients accept only these.
@@ -68,9 +73,12 @@ def add_arguments(parser) -> None:
                         help="check only this MAVLink link (pymavlink URL: udpin:0.0.0.0:14540, "
                              "udpout:127.0.0.1:14580, tcp:HOST:PORT, /dev/ttyACM0,57600): heartbeat, autopilot, "
                              "system id, flight mode, armed, position valid, home")
+    parser.add_argument("--cluster", metavar="ADDRESS",
+                        help="check only the workers of this Dask scheduler (e.g. tcp://10.0.0.5:8786): host, cores, "
+                             "MAGNA version, readiness")
     parser.add_argument("--timeout", type=float, metavar="S",
                         help=f"with --mavlink: seconds to wait for the heartbeat, then again for the position and the "
-                             f"home (default {MAVLINK_TIMEOUT:g})")
+                             f"home (default {MAVLINK_TIMEOUT:g}); with --cluster: for a first worker (default 10)")
 
 
 def check_apt(workspace: Workspace) -> CheckResult:
@@ -235,12 +243,59 @@ def run_mavlink(args) -> int:
     return _summary(results, fixes_shown=True)
 
 
+def check_cluster(address: str, wait: float = 10.0) -> list[CheckResult]:
+    """One line per worker of the scheduler at `address` (waiting up to `wait` s for a first one to join); a
+    ClusterError when no scheduler answers."""
+    from magna_common.workspace import magna_version
+    from magna_master.cluster import connect
+    from magna_master.cluster_task import worker_report
+
+    client = connect(address)
+    try:
+        try:
+            client.wait_for_workers(1, timeout=wait)
+        except TimeoutError:
+            pass  # said below: no worker
+        threads = client.nthreads()
+        reports = client.run(worker_report) if threads else {}
+    finally:
+        client.close()
+    mine = magna_version()
+    results = []
+    for worker, report in sorted(reports.items()):
+        problems = list(report["problems"])
+        if report["version"] != mine:
+            problems.append(f"MAGNA {report['version']} there, {mine} here: check out this commit on its host, "
+                            "`make setup`, and restart the worker")
+        detail = (f"host {report['host']}, cores {report['cores']}, threads {threads.get(worker, '?')}, "
+                  f"MAGNA {report['version']}, " + ("ready" if not problems else "not ready: " + "; ".join(problems)))
+        results.append(CheckResult(worker, not problems, detail))
+    if not results:
+        results.append(CheckResult("workers", False, f"none is connected to {address}",
+                                   f"start one: scripts/with_env.sh dask worker {address} --nthreads 1"))
+    return results
+
+
+def run_cluster(args) -> int:
+    wait = 10.0 if args.timeout is None else args.timeout
+    print(f"Dask scheduler {args.cluster} (waiting up to {wait:g} s for a worker)", flush=True)
+    results = check_cluster(args.cluster, wait)
+    for result in results:
+        mark = "ok  " if result.ok else "FAIL"
+        print(f"[{mark}] {result.name}  {result.detail}", flush=True)
+    print(f"\n{sum(r.ok for r in results)} of {len(results)} worker(s) ready"
+          + ("" if results[0].fix == "" else f"; fix: {results[0].fix}"), flush=True)
+    return 0 if all(r.ok for r in results) else 1
+
+
 def run(args) -> int:
+    if getattr(args, "cluster", None) is not None:
+        return run_cluster(args)
     if getattr(args, "mavlink", None) is not None:
         return run_mavlink(args)
     if getattr(args, "timeout", None) is not None:
 
-        raise UsageError("--timeout goes with --mavlink URL (the wait for a MAVLink vehicle)")
+        raise UsageError("--timeout goes with --mavlink URL or --cluster ADDRESS (the wait for a vehicle or a worker)")
     workspace = Workspace.locate()
     checks = [lambda: check_apt(workspace), lambda: check_venv(workspace), lambda: check_build(workspace)]
     results: list[CheckResult] = []

@@ -123,6 +123,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parallel.add_argument("--jobs", type=int, default=1, metavar="N",
                           help="simulations run at once on this machine, each with its own ROS master, simulator "
                                "and stack (default: 1). A 2-UAV simulation keeps about one core busy")
+    parallel.add_argument("--cluster", metavar="ADDRESS",
+                          help="spread the batch over the workers of a Dask scheduler, e.g. tcp://10.0.0.5:8786 "
+                               "(set-up: src/magna_master/README.md, 'Batches across machines')")
     parser.add_argument("--cold-start", action="store_true",
                         help="a fresh ROS master and launch for every simulation; by default a batch keeps one "
                              "stack (master, simulator, world node, ORCA-3D) up and resets it between its "
@@ -230,7 +233,12 @@ def run(args) -> int:
     config = build_config(args)  # bad input: a UserError, which `magna` prints (exit status 2)
     ask = ask_policy if sys.stdin is not None and sys.stdin.isatty() else None
     reports = None if args.no_report or not config.save_data else Reports()
-    result = run_batch(config, ask=ask, on_simulation=reports)
+    if args.cluster:
+        from magna_master.cluster import run_cluster_batch
+
+        result = run_cluster_batch(config, args.cluster, ask=ask, on_simulation=reports)
+    else:
+        result = run_batch(config, ask=ask, on_simulation=reports)
     print(format_summary(result), flush=True)
     if reports is not None:
         reports.wait()  # the last reports are drawn in a worker thread, and pyplot is for one thread at a time
