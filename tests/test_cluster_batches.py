@@ -85,6 +85,8 @@ def test_a_local_cluster_of_two_workers_matches_the_serial_batch(reference, tmp_
     assert_same_rows(summary(config.dataset_dir), reference[0])
     assert files(config.dataset_dir) == reference[1]
     assert len({s.extra["worker"]["address"] for s in batch.simulations}) == 2
+    # each worker thread keeps its stack between its simulations, as a job slot does
+    assert sorted(s.extra["stack"]["start"] for s in batch.simulations) == ["cold", "cold", "warm", "warm"]
 
 
 # --- a scheduler and two workers as separate processes, each worker in a network namespace ----------------------

@@ -166,20 +166,32 @@ class _StopFlag:
         return self.event.is_set()
 
 
-class _Slot:
-    """One job slot: the simulations it runs one after another, on a persistent stack of its own."""
+class JobSlot:
+    """One job slot: the simulations it runs one after another, on a persistent stack of its own.
 
-    def __init__(self, index: int, cold_reasons: list[str]):
+    A batch makes its slots and stops their stacks when it ends. A slot handed to `Batch.run` by its owner
+    (`kept`) outlives the batch: its stack stays up for the owner's next batch, and the owner stops it (a
+    cluster worker's runner, magna_master.cluster_task)."""
+
+    def __init__(self, index: int, cold_reasons: list[str], kept: bool = False, stack_logs: Path | None = None):
         self.index = index
+        self.kept = kept
+        self.stack_logs = stack_logs  # where its stacks keep their logs (None: the first simulation's logs/stack)
+        self.stacks_started = 0
         self.stack: Stack | None = None
         self.cold_reasons = list(cold_reasons)  # why its simulations start cold (empty: a warm stack)
         self.disk_full = ""  # why its running simulation was stopped for its disk (empty: it was not)
+
+    def stop_stack(self) -> None:
+        if self.stack is not None:
+            self.stack.stop()
+            self.stack = None
 
 
 class _DiskWatch:
     """Looks at the free space under a running simulation's folder at most every `disk_check_period`."""
 
-    def __init__(self, batch: Batch, slot: _Slot, m: int, data_dir: Path | None):
+    def __init__(self, batch: Batch, slot: JobSlot, m: int, data_dir: Path | None):
         self.batch, self.slot, self.m, self.data_dir = batch, slot, m, data_dir
         self.next_check = 0.0
 
@@ -237,9 +249,10 @@ class Batch:
         # One lock for what the job slots share: summary.csv, the results, the progress bar, on_simulation.
         self._shared = threading.Lock()
 
-    def run(self, plan: storage.StoragePlan | None = None) -> BatchResult:
+    def run(self, plan: storage.StoragePlan | None = None, slot: JobSlot | None = None) -> BatchResult:
         """Run the batch; `plan`: the simulation ids and folder decided already (a cluster worker runs one
-        simulation of a client's batch), instead of planning them here from the config."""
+        simulation of a client's batch), instead of planning them here from the config; `slot`: the one job
+        slot to run them on, kept by the caller (its stack is not stopped at the end)."""
         config = self.config
         preflight(config)
         lock = None
@@ -260,13 +273,13 @@ class Batch:
                 if repaired:
                     print(f"magna run: summary.csv had no row for simulation(s) {', '.join(map(str, repaired))} "
                           "(their batch ended before writing it): added", file=self.out, flush=True)
-            return self._loop(plan)
+            return self._loop(plan, slot) if slot is not None else self._loop(plan)
         finally:
             self.stop.restore()
             if lock is not None:
                 lock.release()
 
-    def _loop(self, plan: storage.StoragePlan) -> BatchResult:
+    def _loop(self, plan: storage.StoragePlan, kept: JobSlot | None = None) -> BatchResult:
         from tqdm import tqdm
 
         config = self.config
@@ -275,7 +288,8 @@ class Batch:
                    file=self.out, disable=(None if self.progress is None else not self.progress),
                    dynamic_ncols=True, leave=True)
         run = RunningBatch(plan, bar)
-        slots = [_Slot(i, self.cold_reasons) for i in range(min(config.jobs, len(plan.ids)))]
+        slots = [kept] if kept is not None else [JobSlot(i, self.cold_reasons)
+                                                   for i in range(min(config.jobs, len(plan.ids)))]
         try:
             if len(slots) == 1:
                 self._work(slots[0], run)
@@ -288,7 +302,7 @@ class Batch:
         results = sorted(run.results, key=lambda r: r.id or 0)
         return BatchResult(config, plan, results, bool(self.stop), time.monotonic() - started, self.storage_error)
 
-    def _work_in_threads(self, slots: list[_Slot], run: RunningBatch) -> None:
+    def _work_in_threads(self, slots: list[JobSlot], run: RunningBatch) -> None:
         """Each slot in a thread of its own; this (main) thread keeps taking the stop signals meanwhile."""
         threads = [threading.Thread(target=self._work, args=(slot, run), name=f"magna-job-{slot.index + 1}",
                                     daemon=True) for slot in slots]
@@ -298,7 +312,7 @@ class Batch:
             while thread.is_alive():
                 thread.join(0.2)  # a short join: the signal handlers run in between
 
-    def _work(self, slot: _Slot, run: RunningBatch) -> None:
+    def _work(self, slot: JobSlot, run: RunningBatch) -> None:
         """One slot's simulations, one after another, until none is left or the batch must stop."""
         try:
             while (m := self._next(run)) is not None:
@@ -317,7 +331,8 @@ class Batch:
             with self._shared:
                 run.error = run.error or error
         finally:
-            self._stop_stack(slot)
+            if not slot.kept:
+                self._stop_stack(slot)
 
     def _next(self, run: RunningBatch) -> int | None:
         """The next simulation to start, or None when the batch must not start another."""
@@ -342,7 +357,7 @@ class Batch:
             if result.interrupted:
                 run.halted = True
 
-    def _simulation(self, slot: _Slot, m: int, plan: storage.StoragePlan) -> SimulationResult | None:
+    def _simulation(self, slot: JobSlot, m: int, plan: storage.StoragePlan) -> SimulationResult | None:
         if plan.dataset_dir is not None:  # plan.save
             try:
                 with self._shared:  # it may remove an old summary row
@@ -372,7 +387,7 @@ class Batch:
             if not plan.save:
                 shutil.rmtree(work_dir, ignore_errors=True)
 
-    def _supervise(self, slot: _Slot, m: int, plan: storage.StoragePlan, work_dir: Path,
+    def _supervise(self, slot: JobSlot, m: int, plan: storage.StoragePlan, work_dir: Path,
                    data_dir: Path | None) -> SimulationResult | None:
         if not slot.cold_reasons:
             result = self._supervise_warm(slot, m, plan, work_dir, data_dir)
@@ -387,7 +402,7 @@ class Batch:
                                 world_file=config.inputs.world_file, mission_file=config.inputs.mission_file,
                                 data_dir=data_dir, extra=extra)
 
-    def _supervise_warm(self, slot: _Slot, m: int, plan: storage.StoragePlan, work_dir: Path,
+    def _supervise_warm(self, slot: JobSlot, m: int, plan: storage.StoragePlan, work_dir: Path,
                         data_dir: Path | None) -> SimulationResult | None | _RunCold:
         """Simulation m on the slot's persistent stack (started now if there is none); RUN_COLD when the
         stack could not run it, so that it runs cold instead."""
@@ -398,7 +413,10 @@ class Batch:
         if slot.stack is None:
             stack_token = uuid.uuid4().hex
             try:
-                slot.stack = Stack(stack.server_argv(config), logs / "stack", stack_token).start()
+                slot.stacks_started += 1
+                stack_logs = (slot.stack_logs / f"stack_{slot.stacks_started}" if slot.stack_logs is not None
+                              else logs / "stack")
+                slot.stack = Stack(stack.server_argv(config), stack_logs, stack_token).start()
             except StackError as err:
                 slot.stack = None
                 slot.cold_reasons.append(str(err))
@@ -437,12 +455,10 @@ class Batch:
         return result
 
     @staticmethod
-    def _stop_stack(slot: _Slot) -> None:
-        if slot.stack is not None:
-            slot.stack.stop()
-            slot.stack = None
+    def _stop_stack(slot: JobSlot) -> None:
+        slot.stop_stack()
 
-    def _supervise_cold(self, slot: _Slot, m: int, plan: storage.StoragePlan, work_dir: Path,
+    def _supervise_cold(self, slot: JobSlot, m: int, plan: storage.StoragePlan, work_dir: Path,
                         data_dir: Path | None) -> SimulationResult | None:
         config = self.config
         logs = work_dir / LOGS_DIR
@@ -481,7 +497,7 @@ class Batch:
             master.stop()
         return self._settle_result(slot, m, work_dir, result_path, known, supervisor, hung, leftovers)
 
-    def _settle_result(self, slot: _Slot, m: int, work_dir: Path, result_path: Path, known: SimulationResult,
+    def _settle_result(self, slot: JobSlot, m: int, work_dir: Path, result_path: Path, known: SimulationResult,
                        supervisor, hung: bool, leftovers: list[str],
                        its_log: str = "logs/supervisor.log") -> SimulationResult:
         """result.json as the supervisor left it, completed with what only the batch knows (a disk that
@@ -546,7 +562,7 @@ class Batch:
         return ((config.time_limit or math.inf) + config.stop_grace + config.settle
                 + 3 * config.shutdown_timeout + self.supervisor_margin)
 
-    def _wait_supervisor(self, slot: _Slot, supervisor, m: int, data_dir: Path | None) -> bool:
+    def _wait_supervisor(self, slot: JobSlot, supervisor, m: int, data_dir: Path | None) -> bool:
         """Wait for the supervisor; on a stop request, or a disk that fills up under `data_dir`, forward SIGINT;
         True when it had to be given up as hung."""
         config = self.config

@@ -27,7 +27,7 @@ from typing import Any
 from magna_common.records import SUPERVISOR_FAILED, SimulationResult
 from magna_common.storage_tree import StorageError, simulation_dir
 from magna_master import storage
-from magna_master.batch import Batch, RunningBatch, preflight
+from magna_master.batch import Batch, JobSlot, RunningBatch, preflight
 from magna_master.batch_config import BatchConfig, BatchError
 from magna_master.batch_summary import BatchResult
 from magna_master.cluster_task import CONFIG_FIELDS, describe_inputs, placed_result, run_simulation, stop_batch
@@ -81,7 +81,7 @@ class ClusterBatch(Batch):
         self.client: Any = None  # a distributed.Client while the batch runs
         self.workers: dict = {}
 
-    def run(self, plan: storage.StoragePlan | None = None) -> BatchResult:
+    def run(self, plan: storage.StoragePlan | None = None, slot: JobSlot | None = None) -> BatchResult:
         config = self.config
         preflight(config)
         for flag, used in (("--fleet", config.fleet), ("--rviz", config.rviz), (f"--jobs {config.jobs}",
@@ -98,12 +98,12 @@ class ClusterBatch(Batch):
             threads = self.client.nthreads()
             print(f"magna run: cluster {self.address}: {len(threads)} worker(s), {sum(threads.values())} "
                   f"simulation(s) at once, MAGNA {manifest['version']}", file=self.out, flush=True)
-            return super().run(plan)
+            return super().run(plan)  # the workers have the job slots
         finally:
             client, self.client = self.client, None
             client.close()
 
-    def _loop(self, plan: storage.StoragePlan) -> BatchResult:
+    def _loop(self, plan: storage.StoragePlan, kept: JobSlot | None = None) -> BatchResult:
         from tqdm import tqdm
 
         config, client = self.config, self.client

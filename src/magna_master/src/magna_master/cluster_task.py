@@ -42,7 +42,6 @@ from magna_common.storage_tree import LOGS_DIR
 from magna_common.workspace import find_root, magna_version
 
 CHILD_LOG = "cluster_worker.log"  # the child's output, in the simulation's logs/ folder
-OUTCOME_FILE = "outcome.json"  # the child's result, in its scratch folder (there is no folder with --skip-save)
 # BatchConfig fields a worker takes from the client as they are (the inputs and paths are mapped; a worker
 # keeps no dataset of its own, and runs one simulation at a time per task)
 CONFIG_FIELDS = ("n_iter", "name", "n_dataset", "rtf", "seed", "bag", "time_limit", "button_timeout", "stop_grace",
@@ -160,12 +159,76 @@ def stop_batch(batch_id: str) -> int:
     return len(children)
 
 
-# --- one simulation ---------------------------------------------------------------------------------------------
+# --- one simulation, on this worker thread's runner ------------------------------------------------------------
+
+class Runner:
+    """A child process that runs this worker thread's simulations one after another (`python -m
+    magna_master.cluster_task`), on a persistent stack kept between them as a serial batch keeps its own. It
+    takes one job per line on stdin and answers one line on stdout. The stack is kept for jobs of the same
+    settings (`key`); a job with other settings gets a new runner."""
+
+    def __init__(self, key: str):
+        self.key = key
+        self.scratch = Path(tempfile.mkdtemp(prefix="magna_runner_", dir=_local_directory()))
+        self.log = open(self.scratch / "runner.log", "ab")  # noqa: SIM115 -- open for the runner's life
+        self.process = subprocess.Popen(
+            [sys.executable, "-m", "magna_master.cluster_task", "--scratch", str(self.scratch),
+             "--parent-pid", str(os.getpid())],
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self.log, start_new_session=True, text=True,
+            bufsize=1)
+
+    @property
+    def alive(self) -> bool:
+        return self.process.poll() is None
+
+    def run(self, job: dict[str, Any]) -> dict[str, Any] | None:
+        """Send a job and wait for its answer; None when the runner died first."""
+        assert self.process.stdin is not None and self.process.stdout is not None
+        try:
+            self.process.stdin.write(json.dumps(job) + "\n")
+            self.process.stdin.flush()
+        except (BrokenPipeError, OSError):
+            return None
+        line = self.process.stdout.readline()
+        return json.loads(line) if line.strip() else None
+
+    def close(self) -> None:
+        """End of input: the runner stops its stack and exits."""
+        if self.process.stdin is not None:
+            try:
+                self.process.stdin.close()
+            except OSError:
+                pass
+        try:
+            self.process.wait(120)
+        except subprocess.TimeoutExpired:
+            from magna_common.processes import end_process_group
+
+            end_process_group(self.process)
+        self.log.close()
+        shutil.rmtree(self.scratch, ignore_errors=True)
+
+
+_runners: dict[int, Runner] = {}  # worker thread -> its runner
+
+
+def _runner_for(job: dict[str, Any]) -> Runner:
+    """This thread's runner for the job's settings: the one it has, or a new one."""
+    key = json.dumps({k: v for k, v in job.items() if k not in ("batch", "m", "scratch")}, sort_keys=True)
+    thread = threading.get_ident()
+    runner = _runners.get(thread)
+    if runner is not None and (runner.key != key or not runner.alive):
+        runner.close()
+        runner = None
+    if runner is None:
+        runner = _runners[thread] = Runner(key)
+    return runner
+
 
 def run_simulation(request: dict[str, Any]) -> dict[str, Any]:
     """A Dask task: simulation `request['m']` of the client's batch. Returns {'started': False} when the batch was
     stopped before it began; else the result (SimulationResult.to_dict()), the folder as a gzipped tar (None with
-    --skip-save), the worker and the child's exit code. WorkerMismatch when this worker cannot run it."""
+    --skip-save), the worker and how the runner ended. WorkerMismatch when this worker cannot run it."""
     batch_id, m = request["batch"], request["m"]
     with _guard:
         if batch_id in _stopped:
@@ -177,44 +240,50 @@ def run_simulation(request: dict[str, Any]) -> dict[str, Any]:
     scratch = Path(tempfile.mkdtemp(prefix=f"magna_sim_{m}_", dir=_local_directory()))
     try:
         job = {**request, "files": checked["files"], "scratch": str(scratch)}
-        (scratch / "request.json").write_text(json.dumps(job))
-        log_path = scratch / CHILD_LOG
-        with open(log_path, "ab") as log:
-            child = subprocess.Popen([sys.executable, "-m", "magna_master.cluster_task", str(scratch / "request.json"),
-                                      "--parent-pid", str(os.getpid())], stdout=log, stderr=log,
-                                     stdin=subprocess.DEVNULL, start_new_session=True)
+        runner = _runner_for(job)
         with _guard:
-            _children.setdefault(batch_id, set()).add(child)
+            _children.setdefault(batch_id, set()).add(runner.process)
             stopped = batch_id in _stopped
-        if stopped:  # stopped between the check above and the start
-            child.send_signal(signal.SIGINT)
-        code = child.wait()
+        if stopped:  # stopped between the check above and now
+            runner.process.send_signal(signal.SIGINT)
+        answer = runner.run(job)
         with _guard:
-            _children[batch_id].discard(child)
-        return {"started": True, "worker": worker, "name": name, "host": checked["host"], "exit_code": code,
-                **_collect(scratch, request)}  # its own 'started' (False: stopped before it began) wins
+            _children[batch_id].discard(runner.process)
+        if answer is None:  # the runner died: say how, from its log
+            runner.process.wait()
+            answer = {"started": True, "result": None,
+                      "log_tail": _tail(runner.scratch / "runner.log"), "exit_code": runner.process.returncode}
+        if not answer["started"]:
+            return {"started": False}
+        return {"started": True, "worker": worker, "name": name, "host": checked["host"],
+                "exit_code": answer.get("exit_code"), **_collect(scratch, request, answer)}
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
 
 
-def _collect(scratch: Path, request: dict[str, Any]) -> dict[str, Any]:
-    """The child's result and its simulation folder (with the child's log in its logs/), as a gzipped tar."""
-    outcome_path = scratch / OUTCOME_FILE
-    outcome = json.loads(outcome_path.read_text()) if outcome_path.is_file() else {"started": True, "result": None}
-    result = outcome["result"]
+def close_runners() -> int:
+    """Stop this worker's runners and their stacks (a worker that is closing); returns how many there were."""
+    runners = list(_runners.values())
+    _runners.clear()
+    for runner in runners:
+        runner.close()
+    return len(runners)
+
+
+def _collect(scratch: Path, request: dict[str, Any], answer: dict[str, Any]) -> dict[str, Any]:
+    """The runner's result and the simulation's folder (with the job's log in its logs/), as a gzipped tar."""
     folder = _simulation_folder(scratch, request)
-    log_tail = _tail(scratch / CHILD_LOG)
-    if not outcome["started"]:
-        return {"started": False}
+    log_tail = answer.get("log_tail") or _tail(scratch / CHILD_LOG)
     if folder is None:
-        return {"result": result, "archive": None, "log_tail": log_tail}
+        return {"result": answer["result"], "archive": None, "log_tail": log_tail}
     (folder / LOGS_DIR).mkdir(exist_ok=True)
-    shutil.copyfile(scratch / CHILD_LOG, folder / LOGS_DIR / CHILD_LOG)
+    if (scratch / CHILD_LOG).is_file():
+        shutil.copyfile(scratch / CHILD_LOG, folder / LOGS_DIR / CHILD_LOG)
     buffer = io.BytesIO()
     with tarfile.open(fileobj=buffer, mode="w:gz", compresslevel=1) as archive:  # bags barely compress
         # files and folders only: ROS's logs/ros/latest is a link, which a client takes from no worker
         archive.add(folder, arcname=folder.name, filter=lambda member: None if member.issym() else member)
-    return {"result": result, "archive": buffer.getvalue(), "log_tail": log_tail}
+    return {"result": answer["result"], "archive": buffer.getvalue(), "log_tail": log_tail}
 
 
 def _simulation_folder(scratch: Path, request: dict[str, Any]) -> Path | None:
@@ -250,10 +319,10 @@ def _local_directory() -> str | None:
         return None
 
 
-# --- the child: a batch of this one simulation ----------------------------------------------------------------------
+# --- the runner: a batch of one simulation per job, on a kept job slot ------------------------------------------
 
 def child_config(job: dict[str, Any]):
-    """The BatchConfig of the child: the client's settings, this worker's files, the scratch folder as data root."""
+    """The BatchConfig of a job: the client's settings, this worker's files, the job's scratch folder as data root."""
     from magna_gs.inputs import Inputs
     from magna_master.batch_config import BatchConfig
 
@@ -269,51 +338,69 @@ def child_config(job: dict[str, Any]):
 
 def child_main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m magna_master.cluster_task",
-                                     description="run one simulation of a `magna run --cluster` batch on this "
-                                                 "worker (started by the worker's task, not by hand)")
-    parser.add_argument("request", type=Path, help="the task's request.json, in its scratch folder")
+                                     description="run the simulations of `magna run --cluster` batches on this "
+                                                 "worker thread, one job per line on stdin (started by the "
+                                                 "worker's tasks, not by hand)")
+    parser.add_argument("--scratch", type=Path, required=True, help="the runner's folder (its stacks' logs)")
     parser.add_argument("--parent-pid", type=int, default=0, help="stop the simulation when this process dies")
     args = parser.parse_args(argv)
-    # A stop can come while this process is still starting (Ctrl-C on the client): then no simulation starts.
-    early_stop = threading.Event()
-    batch = None
+    # A stop (Ctrl-C on the client, the worker's death) can come at any time: the running simulation, if any, is
+    # stopped as Ctrl-C stops a serial one, and the runner ends after it.
+    stopping = threading.Event()
+    current: list = []
 
-    def stop_early(*_) -> None:
-        early_stop.set()
-        if batch is not None:
+    def stop(*_) -> None:
+        stopping.set()
+        if not current:  # between jobs: end now (the stack is stopped on the way out)
+            raise SystemExit(0)
+        for batch in current:
             batch.stop.event.set()
 
     for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
-        signal.signal(sig, stop_early)
-    from magna_master.batch import Batch
+        signal.signal(sig, stop)
+    if args.parent_pid:
+        set_parent_death_signal(signal.SIGTERM)  # the worker died
+        if os.getppid() != args.parent_pid:
+            return 1
+    from magna_master.batch import Batch, JobSlot
+    from magna_master.stack import cold_reasons
     from magna_master.storage import StoragePlan
 
-    job = json.loads(args.request.read_text())
-    config = child_config(job)
-    batch = Batch(config, progress=False, out=sys.stdout)
-    if early_stop.is_set():
-        batch.stop.event.set()
-    if args.parent_pid:
-        set_parent_death_signal(signal.SIGTERM)  # the worker died: stop the simulation, as at Ctrl-C
-        if os.getppid() != args.parent_pid:
-            return 1  # it died before prctl took effect: nobody would collect the result
-    plan = StoragePlan(config.dataset_dir if config.save_data else None, [job["m"]],
-                       reason="" if config.save_data else "saving is off (--skip-save)")
+    slot: JobSlot | None = None
+    job_scratch: Path | None = None
     try:
-        result = batch.run(plan)
+        for line in sys.stdin:
+            job = json.loads(line)
+            job_scratch = Path(job["scratch"])
+            config = child_config(job)
+            if slot is None:
+                slot = JobSlot(0, cold_reasons(config), kept=True, stack_logs=args.scratch)
+            with open(Path(job["scratch"]) / CHILD_LOG, "a") as log:
+                batch = Batch(config, progress=False, out=log)
+                current[:] = [batch]
+                if stopping.is_set():
+                    batch.stop.event.set()
+                plan = StoragePlan(config.dataset_dir if config.save_data else None, [job["m"]],
+                                   reason="" if config.save_data else "saving is off (--skip-save)")
+                result = batch.run(plan, slot)
+                current.clear()
+            simulation = result.simulations[0] if result.simulations else None
+            answer = {"started": simulation is not None or not result.interrupted,
+                      "result": dataclasses.replace(simulation, directory=None).to_dict() if simulation else None}
+            try:
+                print(json.dumps(answer, default=str), flush=True)
+            except BrokenPipeError:  # the worker is gone
+                break
+            if stopping.is_set() or (args.parent_pid and os.getppid() != args.parent_pid):
+                break
     finally:
-        orphaned = bool(args.parent_pid) and os.getppid() != args.parent_pid
-        if orphaned:  # nobody will collect the folder
-            shutil.rmtree(job["scratch"], ignore_errors=True)
-    if orphaned:
-        return 1
-    simulation = result.simulations[0] if result.simulations else None
-    if simulation is not None:
-        outcome = {"started": True, "result": dataclasses.replace(simulation, directory=None).to_dict()}
-    else:  # stopped before it started, or it could not start (the log says why)
-        outcome = {"started": not result.interrupted, "result": None}
-    (Path(job["scratch"]) / OUTCOME_FILE).write_text(json.dumps(outcome, default=str))
-    return 130 if result.interrupted else 0
+        if slot is not None:
+            slot.stop_stack()
+        if args.parent_pid and os.getppid() != args.parent_pid:  # the worker died: nobody collects the folders
+            shutil.rmtree(args.scratch, ignore_errors=True)
+            if job_scratch is not None:
+                shutil.rmtree(job_scratch, ignore_errors=True)
+    return 0
 
 
 def placed_result(reply: dict[str, Any], folder: Path | None) -> SimulationResult | None:
