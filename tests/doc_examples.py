@@ -7,6 +7,7 @@ in square brackets that say why an example is not run here, or how it runs:
     [display]     needs a screen           [microphone]  needs a microphone
     [hardware]    needs a real UAV or autopilot
     [long]        takes longer than this test's budget
+    [cluster]     needs other machines or a Slurm cluster
     [fresh clone] needs a clone without catkin build's build/ and devel/ (e.g. catkin_make)
     [synopsis]    a form with placeholders, not an example
     [background]  runs until stopped: started, then the block's next lines run, then it is stopped
@@ -32,7 +33,7 @@ from tests.support import ros_nodes
 
 ROOT = Path(__file__).resolve().parents[1]
 
-NOT_RUN_MARKS = ("display", "microphone", "hardware", "long", "fresh clone", "synopsis")
+NOT_RUN_MARKS = ("display", "microphone", "hardware", "long", "cluster", "fresh clone", "synopsis")
 RUN_MARKS = ("background",)
 MARKS = NOT_RUN_MARKS + RUN_MARKS
 SHELL_LANGUAGES = {"sh", "bash", "shell", "console"}

@@ -6,7 +6,7 @@ ROS_MASTER_URI on a free port. README blocks run with nothing of the workspace s
 newcomer; help examples run with `magna` on PATH, as for someone who just read `magna ... --help`.
 The blocks run in file order, root README first: its `make run` makes the data later examples read.
 
-Examples marked [display], [microphone], [hardware], [long], [fresh clone] or [synopsis] are not run;
+Examples marked [display], [microphone], [hardware], [long], [cluster], [fresh clone] or [synopsis] are not run;
 they are listed at the end of the session and, with every result, in
 build/magna_test_results/documented_commands.md.
 """

@@ -153,6 +153,37 @@ def test_doctor_reports_each_worker(cluster, capsys):
     for address in cluster.scheduler_info["workers"]:
         assert address in out
     assert out.count("ready") >= 2 and f"cores {os.cpu_count()}" in out
-    from magna_common.workspace import magna_version
+    from magna_master.cluster_task import LOADED_VERSION
 
-    assert magna_version() in out
+    assert LOADED_VERSION in out
+
+
+class WorkersWithoutMagna:
+    """A Client whose one worker runs outside MAGNA's environment: every function sent there fails to import."""
+
+    def wait_for_workers(self, n, timeout=None):
+        pass
+
+    def nthreads(self):
+        return {"tcp://10.0.0.9:4000": 1}
+
+    def run(self, function, *args, on_error="raise"):
+        assert on_error == "return"  # a worker that cannot run MAGNA is reported, not raised
+        return {"tcp://10.0.0.9:4000": ModuleNotFoundError("No module named 'magna_master'")}
+
+    def close(self):
+        pass
+
+
+def test_a_worker_outside_magnas_environment_is_named_with_the_fix(monkeypatch, capsys):
+    with pytest.raises(ClusterError) as refused:
+        check_workers(WorkersWithoutMagna(), "tcp://10.0.0.5:8786", {"version": "x", "files": {}})
+    message = str(refused.value)
+    assert "tcp://10.0.0.9:4000" in message and "No module named 'magna_master'" in message
+    assert "scripts/with_env.sh dask worker" in message
+    from magna_master import cluster
+
+    monkeypatch.setattr(cluster, "connect", lambda address: WorkersWithoutMagna())
+    assert cli.main(["doctor", "--cluster", "tcp://10.0.0.5:8786"]) == 1
+    out = capsys.readouterr().out
+    assert "[FAIL] tcp://10.0.0.9:4000  not ready: the check failed there" in out and "0 of 1 worker(s) ready" in out

@@ -2,11 +2,11 @@
 
 The client (this module) plans the dataset exactly as a serial batch does (storage, lock, ids, seeds),
 checks every connected worker (magna_master.cluster_task.check_worker: the same MAGNA version, the same
-world and mission files), then submits one task per simulation. A worker runs its simulation in a
-one-simulation batch of its own and sends back the result and the simulation's folder (a gzipped tar):
-workers need no shared file system. The client writes each folder into the dataset as it arrives (unpacked
-beside it, then renamed into place, so a folder is never half there), then its summary.csv row. The
-storage tree and the summary are those of a serial run of the same seeds.
+world and mission files), then submits one task per simulation. A worker thread runs its simulations one
+after another on a stack it keeps up (magna_master.cluster_task) and sends back each result and the
+simulation's folder (a gzipped tar): workers need no shared file system. The client writes each folder
+into the dataset as it arrives (unpacked beside it, then renamed into place, so a folder is never half
+there), then its summary.csv row. The storage tree and the summary are those of a serial run of the same seeds.
 
 A worker that dies mid-simulation: the scheduler gives the task to another worker; the dead worker's
 result never arrives, so summary.csv gets one row per simulation. Ctrl-C: every worker is told to stop
@@ -63,7 +63,12 @@ def check_workers(client, address: str, manifest: dict[str, Any], timeout: float
                            f"with `scripts/with_env.sh dask worker {address} --nthreads 1`") from None
     from magna_master.cluster_task import check_worker
 
-    checks = client.run(check_worker, manifest)
+    checks = client.run(check_worker, manifest, on_error="return")
+    for worker, check in checks.items():
+        if isinstance(check, BaseException):  # e.g. no magna_master there: not MAGNA's environment
+            checks[worker] = {"host": "?", "problems": [
+                f"the check failed there ({type(check).__name__}: {check}); start the worker in MAGNA's "
+                "environment: scripts/with_env.sh dask worker ..."]}
     wrong = {worker: check for worker, check in checks.items() if check["problems"]}
     if wrong:
         lines = [f"  {worker} ({check['host']}): " + "; ".join(check["problems"]) for worker, check in wrong.items()]
@@ -120,7 +125,7 @@ class ClusterBatch(Batch):
             while futures:
                 if (self.stop or self.storage_error or run.halted) and stop_deadline is None:
                     # stop the running simulations as Ctrl-C stops a serial one; the tasks not started return at once
-                    client.run(stop_batch, batch_id)
+                    client.run(stop_batch, batch_id, on_error="ignore")  # a dead worker has nothing to stop
                     stop_deadline = time.monotonic() + STOP_TIMEOUT
                 if stop_deadline is not None and time.monotonic() > stop_deadline:
                     client.cancel(list(futures))

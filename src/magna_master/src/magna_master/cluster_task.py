@@ -2,19 +2,21 @@
 
 `run_simulation(request)` runs in a thread of a Dask worker (`dask worker`, started in MAGNA's environment).
 It checks the worker against the client (`check_worker`: the same MAGNA version, the same world and mission
-files), then runs the simulation in a child process, `python -m magna_master.cluster_task`: a Batch of
-that one simulation, with everything a serial batch guarantees (its own master and stack, its clean-up,
-result.json, an 'interrupted' mark when stopped). The task returns the result and the simulation's folder
-as a gzipped tar, so the workers need no file system shared with the client.
+files), then hands the simulation to the thread's runner, a child process (`python -m
+magna_master.cluster_task`) that runs it as a one-simulation Batch on a job slot it keeps: everything a
+serial batch guarantees (its own master, its clean-up, result.json, an 'interrupted' mark when stopped),
+and a persistent stack kept up between the thread's simulations of the same settings. The task returns the
+result and the simulation's folder as a gzipped tar, so the workers need no file system shared with the
+client.
 
-The child is in a session of its own and gets SIGTERM when the worker's task thread dies (prctl
-PR_SET_PDEATHSIG): a worker that is killed mid-simulation stops its simulation and leaves no process
-behind. The scheduler then gives the task to another worker, and the client, which writes only the
-results that reach it, gets one result per simulation.
+The runner is in a session of its own and gets SIGTERM when the worker's task thread dies (prctl
+PR_SET_PDEATHSIG); its input pipe closes too. A worker that is killed mid-simulation thus stops its
+simulation and stack and leaves no process behind. The scheduler then gives the task to another worker, and
+the client, which writes only the results that reach it, gets one result per simulation.
 
-`stop_batch(batch_id)` (sent to every worker by `Client.run` on Ctrl-C) sends SIGINT to the batch's
-children and makes its tasks that have not started yet return at once. `worker_report()` is what
-`magna doctor --cluster` shows of each worker.
+`stop_batch(batch_id)` (sent to every worker by `Client.run` on Ctrl-C) sends SIGINT to the runners running
+the batch's simulations and makes its tasks that have not started yet return at once. `worker_report()` is
+what `magna doctor --cluster` shows of each worker.
 """
 from __future__ import annotations
 
@@ -47,7 +49,6 @@ CHILD_LOG = "cluster_worker.log"  # the child's output, in the simulation's logs
 CONFIG_FIELDS = ("n_iter", "name", "n_dataset", "rtf", "seed", "bag", "time_limit", "button_timeout", "stop_grace",
                  "settle", "shutdown_timeout", "launch_command", "output", "battery_floor", "min_free_mb",
                  "cold_start", "managers")
-INPUT_ROLES = ("world", "mission", "utm_plan")
 
 
 class WorkerMismatch(RuntimeError):
@@ -55,6 +56,18 @@ class WorkerMismatch(RuntimeError):
 
 
 # --- what the client and the workers must share -------------------------------------------------------------------
+
+def _version_at_import() -> str:
+    try:
+        return magna_version()
+    except Exception as error:  # noqa: BLE001 -- a worker outside a checkout: check_worker says so
+        return f"unknown ({error})"
+
+
+# The version of the code this process loaded: a worker whose checkout changed after it started still runs the old
+# code, and must differ from a client on the new one.
+LOADED_VERSION = _version_at_import()
+
 
 def file_digest(path: Path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
@@ -72,19 +85,7 @@ def describe_inputs(config, root: Path | None = None) -> dict[str, Any]:
         path = Path(path).resolve()
         relative = str(path.relative_to(root)) if path.is_relative_to(root) else ""
         described[role] = {"relative": relative, "absolute": str(path), "sha256": file_digest(path)}
-    return {"version": magna_version(root), "files": described}
-
-
-def _version_at_import() -> str:
-    try:
-        return magna_version()
-    except Exception as error:  # noqa: BLE001 -- a worker outside a checkout: check_worker says so
-        return f"unknown ({error})"
-
-
-# The version of the code this process loaded: a worker whose checkout changed after it started still runs the old
-# code, and must differ from a client on the new one.
-LOADED_VERSION = _version_at_import()
+    return {"version": LOADED_VERSION, "files": described}
 
 
 def check_worker(manifest: dict[str, Any]) -> dict[str, Any]:

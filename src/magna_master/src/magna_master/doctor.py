@@ -246,9 +246,8 @@ def run_mavlink(args) -> int:
 def check_cluster(address: str, wait: float = 10.0) -> list[CheckResult]:
     """One line per worker of the scheduler at `address` (waiting up to `wait` s for a first one to join); a
     ClusterError when no scheduler answers."""
-    from magna_common.workspace import magna_version
     from magna_master.cluster import connect
-    from magna_master.cluster_task import worker_report
+    from magna_master.cluster_task import LOADED_VERSION, worker_report
 
     client = connect(address)
     try:
@@ -257,12 +256,16 @@ def check_cluster(address: str, wait: float = 10.0) -> list[CheckResult]:
         except TimeoutError:
             pass  # said below: no worker
         threads = client.nthreads()
-        reports = client.run(worker_report) if threads else {}
+        reports = client.run(worker_report, on_error="return") if threads else {}
     finally:
         client.close()
-    mine = magna_version()
+    mine = LOADED_VERSION
     results = []
     for worker, report in sorted(reports.items()):
+        if isinstance(report, BaseException):  # e.g. no magna_master there
+            results.append(CheckResult(worker, False, f"not ready: the check failed there ({type(report).__name__}: "
+                                                      f"{report}); start it with scripts/with_env.sh dask worker ..."))
+            continue
         problems = list(report["problems"])
         if report["version"] != mine:
             problems.append(f"MAGNA {report['version']} there, {mine} here: check out this commit on its host, "

@@ -3,7 +3,8 @@
     magna run --world Gym/1Obs_Central_Cylinder --mission Gym/2UAVs_2paths_Central_Cylinder --n-iter 5 \\
         [--name NAME] [--dataset N] [--rtf max|FACTOR] [--seed S] [--no-bag] [--rviz] [--search-path DIR ...] \\
         [--data-root DIR] [--append|--overwrite|--skip-save] [--time-limit SECONDS] [--launch-command CMD] [--strict] \\
-        [--fleet FLEET.yaml] [--min-free-space MB] [--cold-start] [--managers host|process]
+        [--fleet FLEET.yaml] [--min-free-space MB] [--cold-start] [--managers host|process] [--jobs N]
+        [--cluster ADDRESS]
 
 Exit status: 0 when every simulation ran to a mission outcome (a failed mission is data, not an
 error), 1 when one or more crashed or could not start, or the disk filled up during the batch, 2 for
@@ -40,6 +41,11 @@ When simulation folders of this dataset exist already: --append numbers the new 
 neither you are asked on a terminal, and elsewhere the run stops before starting anything.
 --skip-save saves nothing at all (no folders, no summary, no report); the table is printed at the end.
 
+--jobs N runs N simulations at once, each with its own ROS master, simulator and stack; --cluster ADDRESS
+runs them on the workers of a Dask scheduler, which send each simulation's folder back here. Either way
+the dataset and summary.csv are those of a serial run of the same seeds (src/magna_master/README.md,
+'Batches across machines').
+
 Ctrl-C (or SIGTERM, SIGHUP) stops the running simulation (its processes are ended and it is marked
 'interrupted' in result.json and summary.csv), starts no more, and keeps every finished one; --append
 continues the dataset. A dataset folder that is not writable, or whose disk has less than
@@ -51,6 +57,8 @@ examples:
   ./magna run --world Gym/1Obs_Central_Cylinder --mission Gym/2UAVs_2paths_Central_Cylinder \\
       --search-path ../shared/ros_magna_corpus --n-iter 1 --skip-save
   ./magna run --world worlds/Gym/Four_Cylinders.json --mission missions/Gym/All_Take_Off.json --skip-save --rtf 1.0
+  ./magna run --world Gym/Central_Obstacle_Torus --mission Gym/2UAVs_Crossing_ORCA --n-iter 4 --jobs 2 --skip-save
+  ./magna run --world W/S --mission M/S --n-iter 200 --cluster tcp://SCHEDULER:8786   # on Dask workers [synopsis]
   ./magna run --world Gym/1Obs_Central_Cylinder --mission Gym/2UAVs_2paths_Central_Cylinder --n-iter 80 \\
       --search-path ../shared/ros_magna_corpus --name orca --seed 1000 --append   # [long]
 """
