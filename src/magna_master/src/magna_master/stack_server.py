@@ -165,7 +165,8 @@ class StackServer:
         env = dict(os.environ)
         env[TOKEN_ENV] = request.token
         env["ROS_LOG_DIR"] = request.ros_log_dir
-        command = [sys.executable, node_script("magna_gs", "ground_station"), f"__name:={GROUND_STATION_NODE[1:]}"]
+        script = self.ground_stations.script if self.ground_stations else node_script("magna_gs", "ground_station")
+        command = [sys.executable, script, f"__name:={GROUND_STATION_NODE[1:]}"]
         core = self.core = SupervisorCore(
             command, Path(request.result), Path(request.log),
             data_dir=Path(request.data_dir) if request.data_dir else None,

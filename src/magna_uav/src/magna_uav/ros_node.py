@@ -138,7 +138,9 @@ def wait_until_sim_time(target: float, stop: threading.Event | None = None) -> N
         return
     alarms = _sim_time_alarms()
     start = rospy.get_time()
-    while not rospy.is_shutdown() and not (stop is not None and stop.is_set()):
+    while not rospy.is_shutdown():
+        if stop is not None and stop.is_set():
+            return
         now = rospy.get_time()
         if now < start:
             raise rospy.exceptions.ROSTimeMovedBackwardsException(start - now)
@@ -146,8 +148,6 @@ def wait_until_sim_time(target: float, stop: threading.Event | None = None) -> N
         if alarm is None:
             return
         alarm.wait(0.5)
-    if stop is not None and stop.is_set():
-        return
     raise rospy.ROSInterruptException("ROS shutdown request")
 
 

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from magna_common import ros_names
 from magna_uav.shapes import Part, ShapeTable, Sphere, bounding_sphere
 
 UNKNOWN_BATTERY = math.nan
@@ -86,7 +87,7 @@ class WorldView:
         self.boundaries = None if boundaries is None else np.asarray(boundaries, dtype=float).reshape(3, 2)
         self._agents: dict[int, AgentState] = {}
         self.obstacles = ()
-        self.own_pose_topic = f"/uav_{self.own_id}/ual/pose"  # where the own pose is heard, for the messages
+        self.own_pose_topic = ros_names.ual(self.own_id, "pose")  # where the own pose is heard, for the messages
 
     def update_agent(self, state: AgentState) -> None:
         self._agents[state.id] = state
