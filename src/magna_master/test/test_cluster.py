@@ -82,6 +82,9 @@ def test_a_cluster_batch_writes_the_dataset_a_serial_batch_writes(cluster, make_
         workers.add(written["worker"]["address"])
     assert workers <= set(cluster.scheduler_info["workers"]) and len(workers) == 2
     assert not [p for p in config.dataset_dir.iterdir() if p.name.startswith(".incoming")]
+    # the workers' runners ended with the batch; the workers themselves stay up for the next one
+    assert not [c for _, c in tagged_processes(CLUSTER_ENV, cluster.magna_token) if "magna_master.cluster_task" in c]
+    assert len(cluster.scheduler_info["workers"]) == 2
 
 
 def test_ctrl_c_stops_the_simulations_on_the_workers(cluster, make_config, tmp_path):

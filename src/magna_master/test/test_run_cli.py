@@ -290,9 +290,14 @@ def test_a_killed_batch_leaves_no_process_behind(corpus, tmp_path, leak_token, s
     process.wait()
     from magna_common.processes import tagged_processes
 
-    deadline = time.monotonic() + 30
+    # The orphaned supervisor may take its whole budget to end the launch (SIGINT, SIGTERM, SIGKILL, 10 s apart:
+    # --shutdown-timeout) and then the master (5 s): 35 s. The guard against a hang must lie past it; a wait of 30 s
+    # failed once on a loaded machine.
+    budget = 3 * 10 + 5
+    deadline = time.monotonic() + 2 * budget
     while tagged_processes("MAGNA_MASTER_TEST_TOKEN", leak_token) and time.monotonic() < deadline:
         time.sleep(0.1)
+    assert not tagged_processes("MAGNA_MASTER_TEST_TOKEN", leak_token), "the orphaned simulation did not end"
     assert not pid_alive(json.loads(report.read_text())["pid"])
     marked = json.loads((report.parent / "result.json").read_text())
     assert marked["termination"] == "interrupted"

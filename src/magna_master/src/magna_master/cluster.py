@@ -30,7 +30,14 @@ from magna_master import storage
 from magna_master.batch import Batch, JobSlot, RunningBatch, preflight
 from magna_master.batch_config import BatchConfig, BatchError
 from magna_master.batch_summary import BatchResult
-from magna_master.cluster_task import CONFIG_FIELDS, describe_inputs, placed_result, run_simulation, stop_batch
+from magna_master.cluster_task import (
+    CONFIG_FIELDS,
+    close_runners,
+    describe_inputs,
+    placed_result,
+    run_simulation,
+    stop_batch,
+)
 
 CONNECT_TIMEOUT = 10.0  # s to reach the scheduler
 WORKER_TIMEOUT = 30.0  # s for a first worker to be connected to it
@@ -125,7 +132,7 @@ class ClusterBatch(Batch):
             while futures:
                 if (self.stop or self.storage_error or run.halted) and stop_deadline is None:
                     # stop the running simulations as Ctrl-C stops a serial one; the tasks not started return at once
-                    client.run(stop_batch, batch_id, on_error="ignore")  # a dead worker has nothing to stop
+                    self._on_workers(stop_batch, batch_id)
                     stop_deadline = time.monotonic() + STOP_TIMEOUT
                 if stop_deadline is not None and time.monotonic() > stop_deadline:
                     client.cancel(list(futures))
@@ -139,8 +146,19 @@ class ClusterBatch(Batch):
                     time.sleep(0.1)
         finally:
             bar.close()
+            # the workers' runners and their stacks end with the batch, as a serial batch's stack does
+            self._on_workers(close_runners)
         results = sorted(run.results, key=lambda r: r.id or 0)
         return BatchResult(config, plan, results, bool(self.stop), time.monotonic() - started, self.storage_error)
+
+    def _on_workers(self, function, *args) -> None:
+        """Run `function` on every worker; a worker that died, or a scheduler that is gone, is said, not raised (what
+        the batch has is kept)."""
+        try:
+            self.client.run(function, *args, on_error="ignore")  # a dead worker has nothing to stop or close
+        except Exception as error:  # noqa: BLE001 -- the scheduler is gone: its workers end their runners themselves
+            print(f"magna run: could not reach the workers ({type(error).__name__}: {error}); each one's "
+                  "runner ends with it", file=self.out, flush=True)
 
     def _request(self, batch_id: str, m: int, plan: storage.StoragePlan) -> dict[str, Any]:
         config = self.config

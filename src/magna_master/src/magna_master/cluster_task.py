@@ -5,7 +5,8 @@ It checks the worker against the client (`check_worker`: the same MAGNA version,
 files), then hands the simulation to the thread's runner, a child process (`python -m
 magna_master.cluster_task`) that runs it as a one-simulation Batch on a job slot it keeps: everything a
 serial batch guarantees (its own master, its clean-up, result.json, an 'interrupted' mark when stopped),
-and a persistent stack kept up between the thread's simulations of the same settings. The task returns the
+and a persistent stack kept up between the thread's simulations of the same settings. The client stops the
+runners when its batch ends (`close_runners`). The task returns the
 result and the simulation's folder as a gzipped tar, so the workers need no file system shared with the
 client.
 
@@ -170,6 +171,7 @@ class Runner:
 
     def __init__(self, key: str):
         self.key = key
+        self.busy = False  # running a job (under _guard); close_runners leaves a busy runner alone
         self.scratch = Path(tempfile.mkdtemp(prefix="magna_runner_", dir=_local_directory()))
         self.log = open(self.scratch / "runner.log", "ab")  # noqa: SIM115 -- open for the runner's life
         self.process = subprocess.Popen(
@@ -214,15 +216,19 @@ _runners: dict[int, Runner] = {}  # worker thread -> its runner
 
 
 def _runner_for(job: dict[str, Any]) -> Runner:
-    """This thread's runner for the job's settings: the one it has, or a new one."""
+    """This thread's runner for the job's settings (the one it has, or a new one), marked busy."""
     key = json.dumps({k: v for k, v in job.items() if k not in ("batch", "m", "scratch")}, sort_keys=True)
     thread = threading.get_ident()
-    runner = _runners.get(thread)
+    with _guard:
+        runner = _runners.pop(thread, None)
     if runner is not None and (runner.key != key or not runner.alive):
         runner.close()
         runner = None
     if runner is None:
-        runner = _runners[thread] = Runner(key)
+        runner = Runner(key)
+    with _guard:
+        runner.busy = True
+        _runners[thread] = runner
     return runner
 
 
@@ -239,6 +245,7 @@ def run_simulation(request: dict[str, Any]) -> dict[str, Any]:
         raise WorkerMismatch(f"worker on {checked['host']}: " + "; ".join(checked["problems"]))
     worker, name = _worker_identity()
     scratch = Path(tempfile.mkdtemp(prefix=f"magna_sim_{m}_", dir=_local_directory()))
+    runner = None
     try:
         job = {**request, "files": checked["files"], "scratch": str(scratch)}
         runner = _runner_for(job)
@@ -259,16 +266,22 @@ def run_simulation(request: dict[str, Any]) -> dict[str, Any]:
         return {"started": True, "worker": worker, "name": name, "host": checked["host"],
                 "exit_code": answer.get("exit_code"), **_collect(scratch, request, answer)}
     finally:
+        if runner is not None:
+            with _guard:
+                runner.busy = False
         shutil.rmtree(scratch, ignore_errors=True)
 
 
 def close_runners() -> int:
-    """Stop this worker's runners and their stacks (a worker that is closing); returns how many there were."""
-    runners = list(_runners.values())
-    _runners.clear()
-    for runner in runners:
+    """Stop this worker's idle runners and their stacks (a client's batch has ended: nothing of it stays up on the
+    workers); returns how many were stopped. A runner busy with another client's job is left alone."""
+    with _guard:
+        idle = {thread: runner for thread, runner in _runners.items() if not runner.busy}
+        for thread in idle:
+            del _runners[thread]
+    for runner in idle.values():
         runner.close()
-    return len(runners)
+    return len(idle)
 
 
 def _collect(scratch: Path, request: dict[str, Any], answer: dict[str, Any]) -> dict[str, Any]:
@@ -359,6 +372,10 @@ def child_main(argv: Sequence[str] | None = None) -> int:
 
     for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         signal.signal(sig, stop)
+    # stdout carries the answers alone: anything else written there, by this process or a child that inherits it,
+    # goes to the runner's log (stderr) instead
+    answers = os.fdopen(os.dup(sys.stdout.fileno()), "w", buffering=1)
+    os.dup2(sys.stderr.fileno(), sys.stdout.fileno())
     if args.parent_pid:
         set_parent_death_signal(signal.SIGTERM)  # the worker died
         if os.getppid() != args.parent_pid:
@@ -389,7 +406,7 @@ def child_main(argv: Sequence[str] | None = None) -> int:
             answer = {"started": simulation is not None or not result.interrupted,
                       "result": dataclasses.replace(simulation, directory=None).to_dict() if simulation else None}
             try:
-                print(json.dumps(answer, default=str), flush=True)
+                print(json.dumps(answer, default=str), file=answers, flush=True)
             except BrokenPipeError:  # the worker is gone
                 break
             if stopping.is_set() or (args.parent_pid and os.getppid() != args.parent_pid):
