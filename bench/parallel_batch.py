@@ -28,7 +28,6 @@ import argparse
 import csv
 import os
 import shutil
-import signal
 import subprocess
 import sys
 import tempfile
@@ -119,14 +118,10 @@ class DaskProcesses:
                                                    start_new_session=True))
 
     def stop(self) -> None:
+        from magna_common.processes import end_process_group
+
         for process in reversed(self.processes):
-            if process.poll() is None:
-                os.killpg(process.pid, signal.SIGTERM)
-                try:
-                    process.wait(30)
-                except subprocess.TimeoutExpired:
-                    os.killpg(process.pid, signal.SIGKILL)
-                    process.wait()
+            end_process_group(process)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -21,7 +21,7 @@ from pathlib import Path
 import pytest
 
 from magna_common.ports import free_port
-from magna_common.processes import tagged_processes
+from magna_common.processes import end_process_group, tagged_processes
 from magna_gs.inputs import resolve_inputs
 from magna_master.batch import run_batch
 from magna_master.batch_config import BatchConfig
@@ -146,16 +146,6 @@ def start(argv: list[str], log: Path, env: dict | None = None) -> subprocess.Pop
                                 env=env, cwd=ROOT)
 
 
-def end(process: subprocess.Popen) -> None:
-    if process.poll() is None:
-        os.killpg(process.pid, signal.SIGTERM)
-        try:
-            process.wait(30)
-        except subprocess.TimeoutExpired:
-            os.killpg(process.pid, signal.SIGKILL)
-            process.wait()
-
-
 def in_flight(local_directory: Path) -> int | None:
     """The id of a simulation of this worker with UAV 1 in the air (its CSV has a few rows), or None."""
     for csv_path in local_directory.glob("**/simulation_*/uav_1.csv"):
@@ -215,7 +205,7 @@ def test_a_worker_killed_mid_simulation_on_separate_hosts(reference, tmp_path):
               f"killed on host0; where each ran: {ran_on}")
     finally:
         for process in reversed(processes):
-            end(process)
+            end_process_group(process)
         for mark in marks:  # whatever the assertions said, leave nothing behind
             for pid, _command in tagged_processes(MARK_ENV, mark):
                 os.kill(pid, signal.SIGKILL)

@@ -279,14 +279,18 @@ class Batch:
             if lock is not None:
                 lock.release()
 
-    def _loop(self, plan: storage.StoragePlan, kept: JobSlot | None = None) -> BatchResult:
+    def _progress_bar(self, plan: storage.StoragePlan):
+        """The batch's one progress bar (off when `progress` is False; by default only on a terminal)."""
         from tqdm import tqdm
 
+        inputs = self.config.inputs
+        return tqdm(total=len(plan.ids), unit="sim", desc=f"{inputs.mission}/{inputs.submission}", file=self.out,
+                    disable=(None if self.progress is None else not self.progress), dynamic_ncols=True, leave=True)
+
+    def _loop(self, plan: storage.StoragePlan, kept: JobSlot | None = None) -> BatchResult:
         config = self.config
         started = time.monotonic()
-        bar = tqdm(total=len(plan.ids), unit="sim", desc=f"{config.inputs.mission}/{config.inputs.submission}",
-                   file=self.out, disable=(None if self.progress is None else not self.progress),
-                   dynamic_ncols=True, leave=True)
+        bar = self._progress_bar(plan)
         run = RunningBatch(plan, bar)
         slots = [kept] if kept is not None else [JobSlot(i, self.cold_reasons)
                                                    for i in range(min(config.jobs, len(plan.ids)))]

@@ -116,13 +116,9 @@ class ClusterBatch(Batch):
             client.close()
 
     def _loop(self, plan: storage.StoragePlan, kept: JobSlot | None = None) -> BatchResult:
-        from tqdm import tqdm
-
         config, client = self.config, self.client
         started = time.monotonic()
-        bar = tqdm(total=len(plan.ids), unit="sim", desc=f"{config.inputs.mission}/{config.inputs.submission}",
-                   file=self.out, disable=(None if self.progress is None else not self.progress),
-                   dynamic_ncols=True, leave=True)
+        bar = self._progress_bar(plan)
         run = RunningBatch(plan, bar)
         batch_id = uuid.uuid4().hex
         futures = {client.submit(run_simulation, self._request(batch_id, m, plan), key=f"magna-sim-{m}-{batch_id}",

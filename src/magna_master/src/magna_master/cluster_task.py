@@ -106,9 +106,10 @@ def check_worker(manifest: dict[str, Any]) -> dict[str, Any]:
                             + ("checkout (the same commit)" if wanted["relative"] else
                                "file at the same path (a shared folder, or a copy)"))
             continue
-        if file_digest(path) != wanted["sha256"]:
+        digest = file_digest(path)
+        if digest != wanted["sha256"]:
             problems.append(f"the {role} file {path} differs from the client's {wanted['absolute']} (SHA-256 "
-                            f"{file_digest(path)[:12]} here, {wanted['sha256'][:12]} there): make them the same")
+                            f"{digest[:12]} here, {wanted['sha256'][:12]} there): make them the same")
             continue
         found[role] = str(path)
     return {"host": socket.gethostname(), "version": version, "files": found, "problems": problems}
