@@ -6,8 +6,10 @@ import pytest
 from magna_gs.commands import CommandRefused, Param, UavStatus, plan_command
 from magna_gs.mission.loader import mission_from_data
 from magna_gs.mission.model import MissionError
+from magna_uav.roles import FLYING_AUTO
 
-UAVS = {1: UavStatus(1, np.array([0.0, 0.0, 3.0])), 2: UavStatus(2, np.array([2.0, 0.0, 3.0]))}
+UAVS = {1: UavStatus(1, np.array([0.0, 0.0, 3.0]), ual_state=FLYING_AUTO),
+        2: UavStatus(2, np.array([2.0, 0.0, 3.0]), ual_state=FLYING_AUTO)}
 UP = (Param("direction", text="up"), Param("distance", 1.0, unit="m"))
 
 
