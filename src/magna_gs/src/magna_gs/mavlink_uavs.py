@@ -81,6 +81,10 @@ class MavlinkUavs:
     def flies(self, uav_id: int) -> bool:
         return uav_id in self.fleet.uavs and self.modes.get(uav_id) in ("hil", "real")
 
+    def arms_itself(self, uav_id: int) -> bool:
+        """Whether its bridge arms it for a take-off (arming auto), so it may take off from LANDED_DISARMED."""
+        return self.flies(uav_id) and self.fleet.uavs[uav_id].arming_for(self.modes[uav_id]) == "auto"
+
     def bring_up(self, uav_id: int, spawn_stand_in) -> None:
         """Start the bridge of `uav_id` (after `spawn_stand_in(local_port, remote_port)` for a stand-in)
         and wait until its UAL reports a valid state; MavlinkUavError when the vehicle is not there."""

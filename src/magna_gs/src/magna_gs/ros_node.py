@@ -68,6 +68,7 @@ from magna_common.ros_names import (
 from magna_common.warm_start import WarmStarter
 from magna_common.workspace import node_script
 from magna_gs.bag_recorder import BagRecorder, mission_topics
+from magna_gs.command_goals import CommandGoals, refusal_message
 from magna_gs.commands import CommandPlan, CommandRefused, Param, UavStatus, plan_command
 from magna_gs.critical_events import CriticalEvent, describe_all
 from magna_gs.factory import ActionClients, RosStateFactory, wait_sim_seconds, world_poses
@@ -669,28 +670,39 @@ class GroundStation:
         return StateActualizationResponse(True, "")
 
     def uav_statuses(self) -> dict[int, UavStatus]:
+        mavlink = self.services.mavlink
         with self.lock:
             return {i: UavStatus(i, s.get("position"), s.get("yaw", 0.0), s.get("state", ""), s.get("ual_state", 0),
-                                 s.get("battery", float("nan"))) for i, s in self.statuses.items()}
+                                 s.get("battery", float("nan")), mavlink is not None and mavlink.arms_itself(i))
+                    for i, s in self.statuses.items()}
 
     # --- operators ------------------------------------------------------------------------
     def _on_command(self, req):
+        """Plan the command (refused with the reason when the ground station sees it cannot be done), carry it out,
+        and give the action goals a moment (command_goals.WAIT wall s at most): one a manager ends at once makes
+        the answer a refusal with the manager's reason."""
         params = [Param(p.name, p.number, p.text, p.unit) for p in req.parameters]
         boundaries = rospy.get_param(WORLD_BOUNDARIES, None)
         try:
             plan = plan_command(req.intent, req.action, req.agent, params, self.uav_statuses(),
                                 None if boundaries is None else np.asarray(boundaries, dtype=float),
                                 locked=self.mission.operator_locked_ids)
-            self._execute(plan)
+            goals = self._execute(plan)
+            refused = goals.refusals()
         except CommandRefused as refusal:
             rospy.logwarn(f"command refused: {refusal}")
             return GroundStationCommandResponse(False, str(refusal), [])
         except (RuntimeError, rospy.ServiceException, rospy.ROSException) as error:
             return GroundStationCommandResponse(False, f"could not carry it out: {error}", [])
+        if refused:
+            ended = {w.uav_id for w in refused}
+            message = refusal_message(refused, [o.sentence for o in plan.orders if o.uav_id not in ended])
+            rospy.logwarn(f"command refused by its UAV managers: {message}")
+            return GroundStationCommandResponse(False, message, [])
         values = [NamedValue(a.name, a.number, a.text, a.unit) for a in plan.answers]
         return GroundStationCommandResponse(True, plan.message, values)
 
-    def _execute(self, plan: CommandPlan) -> None:
+    def _execute(self, plan: CommandPlan) -> CommandGoals:
         if plan.mission == "standby":
             self.services.paused.set()
         elif plan.mission == "critical":
@@ -703,10 +715,13 @@ class GroundStation:
             name, ids = plan.algorithm
             if not self.services.algorithm_control(ids, name, "set", [], []):
                 raise CommandRefused(f"a UAV manager refused algorithm {name}; see its log")
+        goals = CommandGoals()
         for order in plan.orders:
             goal_type = getattr(actions, {"take_off": "TakeOff", "land": "Land", "basic_move": "BasicMove",
                                           "follow_agent_ad": "FollowAgentAD"}[order.action] + "Goal")
-            self.services.action_client(order.uav_id, order.action).send_goal(goal_type(**order.fields))
+            goals.send(self.services.action_client(order.uav_id, order.action), goal_type(**order.fields),
+                       order.uav_id, order.verb)
+        return goals
 
     def _on_stop(self, req):
         self.machine.request_preempt()
