@@ -24,24 +24,30 @@ class Reply:
     sent_at: float = 0.0  # time.monotonic() when the request left
 
     def describe(self) -> str:
-        head = ("done: " if self.accepted else "refused: ") + self.message
+        """The ground station's answer as it is: an accepted command's message says what will happen ("UAV 2
+        climbing to 7 m"), a refusal's why ("refused: UAV 1 is landing, so it cannot move")."""
+        head = self.message if self.accepted else "refused: " + self.message
         if not self.values:
             return head
         return head + "\n" + "\n".join(f"  {v.name}: {v.text or f'{v.number:.1f}'}{' ' + v.unit if v.unit else ''}"
                                        for v in self.values)
 
     def spoken(self) -> str:
-        """The answer as a short sentence for espeak-ng."""
-        if not self.accepted:
-            return "Refused. " + self.message
-        if not self.values:
-            return "Done. " + self.message
+        """The answer as a short sentence for espeak-ng: the ground station's message (a refusal's already says
+        why it cannot be done), or the values asked for."""
+        if not self.accepted or not self.values:
+            return _sentence(self.message)
         parts = []
         for v in self.values:
             who, _, what = v.name.partition(".")
             value = v.text or (f"{v.number:.0f} percent" if v.unit == "%" else f"{v.number:.1f} {v.unit}")
             parts.append(f"{who.replace('uav_', 'drone ')} {what.replace('.', ' ')} {value}")
         return ". ".join(parts)
+
+
+def _sentence(text: str) -> str:
+    text = text.strip()
+    return text if not text or text.endswith((".", "!", "?")) else text + "."
 
 
 def to_request_fields(command: Command) -> dict:
