@@ -5,7 +5,7 @@ from types import SimpleNamespace
 
 from actionlib_msgs.msg import GoalStatus
 
-from magna_gs.command_goals import CommandGoals, refusal_message
+from magna_gs.command_goals import GRACE, CommandGoals, refusal_message
 
 
 class Client:
@@ -50,6 +50,22 @@ def test_a_goal_past_its_first_steps_is_taken_without_waiting_for_the_bound():
     refused, took = timed(goals)
     assert refused == []
     assert took < 2.0
+
+
+def test_a_goal_ended_by_its_first_step_is_a_refusal_though_its_feedback_came_first():
+    goals = CommandGoals(bound=5.0)
+    goals.send(Client(("feedback",), ("done", GoalStatus.ABORTED, "take_off: UAL refused: ..."), delay=0.05),
+               object(), 1, "take off")
+    refused, _ = timed(goals)
+    assert [w.reason for w in refused] == ["take_off: UAL refused: ..."]
+
+
+def test_a_goal_with_one_step_and_no_result_is_taken_after_its_grace_not_the_bound():
+    goals = CommandGoals(bound=5.0)
+    goals.send(Client(("feedback",)), object(), 1, "take off")  # a take-off's later steps send no feedback
+    refused, took = timed(goals)
+    assert refused == []
+    assert GRACE <= took < 2.0
 
 
 def test_a_goal_with_no_news_counts_as_taken_once_the_bound_is_over():

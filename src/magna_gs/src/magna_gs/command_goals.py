@@ -4,15 +4,17 @@ The ground station answers an operator (/magna/gs/command) only after its goals 
 with their managers: a manager ends a goal it cannot fly `aborted` straight away, with the reason as
 the result's `message` (magna_uav.ros_node; e.g. "basic_move: UAL refused: go_to_waypoint refused:
 UAV 1 is LANDING"), and the answer must say so rather than "accepted". `CommandGoals` sends each goal
-with callbacks and `refusals` waits, `bound` wall seconds at most, until every goal is either done
-or past its first control steps (`SETTLED_STEPS` feedback messages: a step that ended the goal is
-followed by its result at once, so one feedback alone does not tell). A goal still running when the
-wait ends counts as taken. A land goal sends no feedback (its steps carry no target): its wait is
-the whole bound, unless it ends sooner.
+with callbacks and `refusals` waits, `bound` wall seconds at most, until every goal is done or past
+its first control step. A manager sends a step's feedback after carrying the step out (its UAL
+command sent, or refused) and, when the step ended the goal, the result right after: so a goal is
+past its first step at its second feedback, or `GRACE` s after its first. A goal still running when
+the wait ends counts as taken. Only steps with a target send feedback: a take-off's first one, every
+step of a move, turn or follow, none of a landing's, whose wait is the whole bound unless it ends.
 """
 from __future__ import annotations
 
 import functools
+import math
 import threading
 import time
 from dataclasses import dataclass
@@ -21,6 +23,7 @@ from actionlib_msgs.msg import GoalStatus
 
 WAIT = 1.0  # wall s: the most an operator's answer waits for its goals
 SETTLED_STEPS = 2  # feedback messages after which a goal counts as taken
+GRACE = 0.2  # wall s after a goal's first feedback for a result that step ended it with
 
 
 @dataclass
@@ -30,10 +33,14 @@ class Watched:
     status: int | None = None  # GoalStatus once done
     reason: str = ""  # the result's message
     steps: int = 0  # feedback heard
+    first_step_at: float | None = None  # time.monotonic() of the first feedback
 
-    @property
-    def settled(self) -> bool:
-        return self.status is not None or self.steps >= SETTLED_STEPS
+    def settled_at(self) -> float:
+        """When (time.monotonic()) it counts as settled: -inf once done or past SETTLED_STEPS, the end of its
+        GRACE after one feedback, inf while nothing is known."""
+        if self.status is not None or self.steps >= SETTLED_STEPS:
+            return -math.inf
+        return math.inf if self.first_step_at is None else self.first_step_at + GRACE
 
 
 class CommandGoals:
@@ -60,6 +67,8 @@ class CommandGoals:
     def _feedback(self, watched: Watched, _feedback) -> None:
         with self._changed:
             watched.steps += 1
+            if watched.first_step_at is None:
+                watched.first_step_at = time.monotonic()
             self._changed.notify_all()
 
     def refusals(self) -> list[Watched]:
@@ -67,11 +76,12 @@ class CommandGoals:
         needed: until each is done or settled)."""
         deadline = time.monotonic() + self.bound
         with self._changed:
-            while not all(w.settled for w in self.watched):
-                left = deadline - time.monotonic()
-                if left <= 0:
+            while self.watched:
+                now = time.monotonic()
+                settled = max(w.settled_at() for w in self.watched)
+                if settled <= now or deadline <= now:
                     break
-                self._changed.wait(left)
+                self._changed.wait(min(settled, deadline) - now)
             return [w for w in self.watched if w.status in (GoalStatus.ABORTED, GoalStatus.REJECTED)]
 
 
