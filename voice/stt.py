@@ -7,6 +7,7 @@ the time the decoding took. The offline recogniser only knows the words of its s
 from __future__ import annotations
 
 import itertools
+import math
 import threading
 import time
 import warnings
@@ -17,7 +18,10 @@ import numpy as np
 from voice.audio import SAMPLE_RATE, prepare_for_recognition
 from voice.speech_model import ACOUSTIC_MODEL, SpeechModel
 
-MAX_ALTERNATIVES = 10
+MAX_ALTERNATIVES = 10  # what the online recogniser returns at most
+# The offline n-best is rescored by the parser (voice.rescoring): the right command is often a few dozen
+# hypotheses down, behind variants of the best one that differ in a filler or a plural.
+OFFLINE_ALTERNATIVES = 60
 PAD_SECONDS = 0.3
 DITHER_LSB = 30.0
 # Noise floor the recogniser wants, relative to the speech level (the 90th percentile of 30 ms frame RMS).
@@ -48,12 +52,13 @@ class RecognitionError(RuntimeError):
 @dataclass
 class Transcript:
     """What a recogniser heard: text (lower case for the offline one; "" if nothing), n-best alternatives
-    (best first, so alternatives[0] == text when text is not empty; deduplicated; at most 10), seconds
-    the recognition took."""
+    (best first, so alternatives[0] == text when text is not empty; deduplicated; at most MAX_ALTERNATIVES),
+    seconds the recognition took, and each alternative's log score where the recogniser gives one."""
 
     text: str
     alternatives: list[str] = field(default_factory=list)
     seconds: float = 0.0
+    scores: list[float] | None = None  # the recogniser's log score of each alternative (None: not known)
 
 
 def as_int16(samples: np.ndarray) -> np.ndarray:
@@ -102,6 +107,17 @@ def _unique(texts, limit: int = MAX_ALTERNATIVES) -> list[str]:
     return out
 
 
+def _best_scores(scored: list[tuple[str, float]]) -> tuple[list[str], list[float]]:
+    """Unique texts, best first, each with the log of its best score (pocketsphinx gives exp-scaled scores)."""
+    best: dict[str, float] = {}
+    for text, score in scored:
+        text = " ".join(text.split())
+        if text:
+            log_score = math.log(score) if score > 0 else -math.inf
+            best[text] = max(best.get(text, -math.inf), log_score)
+    return list(best), list(best.values())
+
+
 class OfflineRecognizer:
     """PocketSphinx with the speech model's language model and dictionary; one decoder, reused."""
 
@@ -131,8 +147,9 @@ class OfflineRecognizer:
             d.end_utt()
             hyp = d.hyp()
             text = " ".join(hyp.hypstr.split()) if hyp is not None else ""
-            nbest = [h.hypstr for h in itertools.islice(d.nbest(), 4 * MAX_ALTERNATIVES)] if text else []
-        return Transcript(text, _unique([text, *nbest]), time.perf_counter() - start)
+            nbest = [(h.hypstr, h.score) for h in itertools.islice(d.nbest(), OFFLINE_ALTERNATIVES)] if text else []
+        alternatives, scores = _best_scores([(text, hyp.score if text else 0.0), *nbest])
+        return Transcript(text, alternatives, time.perf_counter() - start, scores)
 
 
 class OnlineRecognizer:

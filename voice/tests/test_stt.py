@@ -7,7 +7,7 @@ import pytest
 
 from voice.speech_model import cached_speech_model
 from voice.stt import (
-    MAX_ALTERNATIVES,
+    OFFLINE_ALTERNATIVES,
     OfflineRecognizer,
     OnlineRecognizer,
     RecognitionError,
@@ -67,7 +67,9 @@ def test_the_offline_recogniser_transcribes_synthetic_commands(recognizer):
     for t, seconds in zip(transcripts, took, strict=True):
         # the time it reports is the call's own (how long that is: bench/voice_accuracy.py, "decode")
         assert isinstance(t, Transcript) and 0 < t.seconds <= seconds
-        assert t.alternatives[0] == t.text and len(set(t.alternatives)) == len(t.alternatives) <= MAX_ALTERNATIVES
+        assert t.alternatives[0] == t.text and len(set(t.alternatives)) == len(t.alternatives) <= OFFLINE_ALTERNATIVES
+        # one log score per alternative, the best hypothesis's the highest
+        assert t.scores is not None and len(t.scores) == len(t.alternatives) and max(t.scores) == t.scores[0] <= 0
         assert all(a == " ".join(a.split()) and set(a.split()) <= set(recognizer.speech_model.words)
                    for a in t.alternatives)
 
