@@ -11,6 +11,8 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import threading
+import time
 from pathlib import Path
 
 from magna_common import ros_names
@@ -18,6 +20,7 @@ from magna_common.cli_vocabulary import add_output
 
 HELP = "command a running mission by voice or keyboard, offline: assistant, parse, transcribe"
 PROMPT = "magna voice> "
+TRANSCRIBE_HYPOTHESES = 5  # of the n-best, the ones `transcribe` prints
 
 
 class CliError(Exception):
@@ -75,18 +78,21 @@ def _line(text, understanding, result) -> dict:
 
 
 def cmd_transcribe(args) -> int:
-    from voice.assistant import choose_hypothesis
     from voice.audio import read_wav
     from voice.interpret import parse
+    from voice.rescoring import rescore
 
     files = _existing_files(args.files)
     ids = _uav_ids(args.uavs)
     recognizer = _recognizer(args, ids)
     for path in files:
         transcript = recognizer.transcribe(read_wav(path))
-        text = choose_hypothesis([transcript.text, *transcript.alternatives], ids)
-        understanding, result = parse(text, ids)
-        line = {"file": str(path), "transcript": transcript.text, **_line(text, understanding, result),
+        hearing = rescore(transcript.alternatives or [transcript.text], transcript.scores, ids)
+        understanding, result = parse(hearing.text, ids)
+        line = {"file": str(path), "transcript": transcript.text, **_line(hearing.text, understanding, result),
+                "confidence": round(hearing.confidence, 3),
+                "hypotheses": [{"text": h.text, "confidence": round(h.confidence, 3), "grammatical": h.grammatical}
+                               for h in hearing.hypotheses[:TRANSCRIBE_HYPOTHESES]],
                 "decode_seconds": round(transcript.seconds, 3)}
         print(json.dumps(line), flush=True)
     return 0
@@ -98,8 +104,9 @@ def _assistant(args, ids, recognizer=None):
     say = None
     if args.speak:
         from voice.synth import speak as say
+    options = {"confirm_seconds": args.confirm_seconds}
     if args.dry_run:
-        return Assistant(None, ids, say, recognizer)
+        return Assistant(None, ids, say, recognizer, **options)
     from voice.backend import GroundStationClient
 
     print(f"waiting for the ground station ({args.service}) ...", file=sys.stderr)
@@ -111,7 +118,7 @@ def _assistant(args, ids, recognizer=None):
         if not ids:
             print(f"no UAVs in {ros_names.UAL_IDS} after {args.wait:g} s: questions will not offer UAV ids "
                   "(--uavs gives them)", file=sys.stderr)
-    return Assistant(client.send, ids, say, recognizer)
+    return Assistant(client.send, ids, say, recognizer, **options)
 
 
 def cmd_assistant(args) -> int:
@@ -137,9 +144,24 @@ def cmd_assistant(args) -> int:
         for path in _existing_files(args.audio):
             print(render(assistant.handle_audio(read_wav(path))), flush=True)
         return 0
+    _watch_confirmations(assistant)
     if args.mic:
         return _listen(args, assistant)
     return _keyboard(assistant)
+
+
+def _watch_confirmations(assistant) -> None:
+    """Say so when a "did you say ...?" goes unanswered for --confirm-seconds (the command is dropped)."""
+    from voice.assistant import render
+
+    def watch():
+        while True:
+            time.sleep(0.25)
+            outcome = assistant.expire()
+            if outcome is not None:
+                print(render(outcome), flush=True)
+
+    threading.Thread(target=watch, name="confirmation-timeout", daemon=True).start()
 
 
 def _keyboard(assistant) -> int:
@@ -206,6 +228,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--wait", type=float, default=30.0, metavar="S",
                         help="seconds to wait for each of: the ROS master, the ground station's service and "
                              "(without --uavs) the mission's UAVs (default %(default)g)")
+    from voice.assistant import CONFIRM_SECONDS
+
+    parser.add_argument("--confirm-seconds", type=float, default=CONFIRM_SECONDS, metavar="S",
+                        help="seconds to answer \"did you say ...?\" before the command is dropped "
+                             "(default %(default)g)")
     parser.add_argument("--device", default=None, help="microphone: a sounddevice input device (index or name)")
     parser.add_argument("--silence", type=float, default=0.8, metavar="S",
                         help="microphone: seconds of silence that end an utterance")
