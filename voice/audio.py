@@ -195,6 +195,68 @@ def prepare_for_recognition(samples: np.ndarray, seed: int = 0, pad_seconds: flo
     return to_int16(x)
 
 
+def frame_rms(samples: np.ndarray) -> np.ndarray:
+    """RMS of each whole 30 ms frame."""
+    x = np.asarray(samples, dtype=np.float64).reshape(-1)
+    frames = x[: x.size // FRAME_SAMPLES * FRAME_SAMPLES].reshape(-1, FRAME_SAMPLES)
+    return np.sqrt(np.mean(frames**2, axis=1)) if frames.size else np.zeros(0)
+
+
+def estimated_snr_db(samples: np.ndarray) -> float:
+    """Speech over background, from the loud and quiet frames (90th and 10th percentile RMS); inf in digital
+    silence, 0 for audio too short to tell."""
+    rms = frame_rms(samples)
+    if rms.size < 3:
+        return 0.0
+    loud, quiet = np.percentile(rms, 90), np.percentile(rms, 10)
+    return math.inf if quiet <= 0 else float(20 * np.log10(max(loud, quiet) / quiet))
+
+
+# Spectral noise suppression (a Wiener-style gain with a floor): the noise spectrum is the mean of the quietest
+# 15 % of 32 ms frames; each bin keeps max(1 - OVER * noise / power, FLOOR) of itself. Measured on espeak-ng
+# commands at 10 dB SNR (80 utterances of the tuning set, 2 voices): none 47 right; OVER/FLOOR 1/0.3: 50,
+# 1/0.5: 54, 1.5/0.4: 56, 1.5/0.5: 56, 2/0.5: 57, 3/0.5: 52, 2/0.3: 51, 0.7/0.3: 48. A deep floor leaves
+# "musical noise" the acoustic model mistakes for phones; 1.5/0.5 is the gentler of the best.
+SUPPRESSION_OVER = 1.5
+SUPPRESSION_FLOOR = 0.5
+_STFT_SIZE, _STFT_HOP = 512, 128
+
+
+def suppress_noise(samples: np.ndarray) -> np.ndarray:
+    """The samples with their stationary background noise turned down (see SUPPRESSION_OVER); same length, int16."""
+    x = np.asarray(samples, dtype=np.float64).reshape(-1)
+    n, hop = _STFT_SIZE, _STFT_HOP
+    if x.size < 4 * n:
+        return to_int16(x)
+    window = np.hanning(n)
+    padded = np.concatenate([np.zeros(n), x, np.zeros(n)])
+    frames = np.lib.stride_tricks.sliding_window_view(padded, n)[::hop] * window
+    spectra = np.fft.rfft(frames, axis=1)
+    power = np.abs(spectra) ** 2
+    energy = power.sum(axis=1)
+    noise = power[energy <= np.percentile(energy, 15)].mean(axis=0)
+    gain = np.maximum(1.0 - SUPPRESSION_OVER * noise / np.maximum(power, 1e-9), SUPPRESSION_FLOOR)
+    cleaned = np.fft.irfft(spectra * gain, n, axis=1) * window
+    out, weight = np.zeros(padded.size), np.zeros(padded.size)
+    for i, frame in enumerate(cleaned):  # overlap-add, normalised by the summed squared window
+        out[i * hop:i * hop + n] += frame
+        weight[i * hop:i * hop + n] += window**2
+    return to_int16((out / np.maximum(weight, 1e-6))[n:n + x.size])
+
+
+def add_noise(samples: np.ndarray, snr_db: float, seed: int = 0, pad_seconds: float = 0.3) -> np.ndarray:
+    """The speech with white Gaussian noise at `snr_db` below its level, and `pad_seconds` of that noise on both
+    ends (background noise does not wait for the speaker). The speech level is the mean power of its frames
+    within 30 dB of the loudest, so the pauses between words do not count as speech. Seeded: deterministic."""
+    x = np.asarray(samples, dtype=np.float64).reshape(-1)
+    power = frame_rms(x) ** 2 if x.size >= FRAME_SAMPLES else np.array([np.mean(x**2)])
+    speech_power = float(np.mean(power[power >= 1e-3 * power.max()])) if power.max() > 0 else 0.0
+    pad = np.zeros(int(round(pad_seconds * SAMPLE_RATE)))
+    x = np.concatenate([pad, x, pad])
+    noise_rms = np.sqrt(speech_power / 10.0 ** (snr_db / 10.0))
+    return to_int16(x + np.random.default_rng(seed).normal(0.0, noise_rms, x.size))
+
+
 # ---------------------------------------------------------------------------------------------------------------
 # voice-activity detection
 

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from voice.audio import SAMPLE_RATE, prepare_for_recognition
+from voice.audio import SAMPLE_RATE, estimated_snr_db, prepare_for_recognition, suppress_noise
 from voice.speech_model import ACOUSTIC_MODEL, SpeechModel
 
 MAX_ALTERNATIVES = 10  # what the online recogniser returns at most
@@ -32,6 +32,7 @@ DITHER_LSB = 30.0
 # of 160. Recordings whose own noise floor is already that high get only the 30 LSB dither.
 NOISE_FLOOR_RATIO = 0.05
 FRAME = 480  # 30 ms
+SUPPRESS_NOISE_BELOW_DB = 30.0  # estimated SNR under which the background is suppressed; clean speech is left alone
 
 # Decoder settings, measured on espeak-ng speech of 40 sentences x 4 voices (en-us, +m3, +f2, +m7) at 140-175
 # wpm, exact sentences of 160, decode time per utterance on 2 cores, with the voice.corpus model (4061 sentences):
@@ -91,8 +92,11 @@ def prepare(samples: np.ndarray) -> np.ndarray:
 
     PocketSphinx's feature extraction breaks on exact digital zeros (synthetic speech and digital
     silence): without dither, 3 of 16 espeak sentences came back right, with 30 LSB of it 12 of 16.
+    Noisy audio (under SUPPRESS_NOISE_BELOW_DB) has its background turned down first (voice.audio.suppress_noise).
     """
     samples = as_int16(samples)
+    if estimated_snr_db(samples) < SUPPRESS_NOISE_BELOW_DB:
+        samples = suppress_noise(samples)
     return as_int16(prepare_for_recognition(samples, pad_seconds=PAD_SECONDS, dither=dither_level(samples)))
 
 

@@ -285,3 +285,49 @@ def test_listen_flushes_at_the_end_and_creates_the_directory(tmp_path):
     out = tmp_path / "new" / "dir"
     heard = list(listen(iter([x]), VoiceActivityDetector(), out))
     assert len(heard) == 1 and heard[0][0].parent == out and heard[0][0].exists()
+
+
+def _tone_bursts(seconds=2.0):
+    """A stand-in for speech: 440 Hz bursts of 0.3 s every 0.5 s at a speech-like level."""
+    t = np.arange(int(seconds * SAMPLE_RATE)) / SAMPLE_RATE
+    return (8000 * np.sin(2 * np.pi * 440 * t) * ((t % 0.5) < 0.3)).astype(np.int16)
+
+
+def test_added_noise_has_the_asked_snr_and_fills_the_padding():
+    from voice.audio import add_noise
+
+    speech = _tone_bursts()
+    noisy = add_noise(speech, 10.0, seed=1, pad_seconds=0.3).astype(np.float64)
+    pad = int(0.3 * SAMPLE_RATE)
+    assert noisy.size == speech.size + 2 * pad
+    noise_power = np.mean(noisy[:pad] ** 2)
+    bursts = speech.astype(np.float64)[(np.arange(speech.size) / SAMPLE_RATE % 0.5) < 0.3]
+    assert 10 * np.log10(np.mean(bursts**2) / noise_power) == pytest.approx(10.0, abs=0.3)
+    assert np.array_equal(add_noise(speech, 10.0, seed=1), add_noise(speech, 10.0, seed=1))  # seeded
+
+
+def test_noise_suppression_turns_the_background_down_and_keeps_the_speech():
+    from voice.audio import add_noise, estimated_snr_db, suppress_noise
+
+    speech = _tone_bursts()
+    noisy = add_noise(speech, 10.0, seed=2)
+    cleaned = suppress_noise(noisy)
+    assert cleaned.size == noisy.size and cleaned.dtype == np.int16
+    pad = int(0.3 * SAMPLE_RATE)
+    assert np.std(cleaned[:pad].astype(float)) < 0.6 * np.std(noisy[:pad].astype(float))  # the quiet part
+    loud = slice(pad + 800, pad + 4000)  # inside the first burst
+    assert np.std(cleaned[loud].astype(float)) > 0.8 * np.std(noisy[loud].astype(float))
+    assert estimated_snr_db(cleaned) > estimated_snr_db(noisy) + 3
+
+
+def test_clean_speech_is_not_suppressed():
+    from voice import stt
+    from voice.audio import add_noise, estimated_snr_db, prepare_for_recognition
+
+    speech = _tone_bursts()
+    assert estimated_snr_db(speech) == float("inf") > stt.SUPPRESS_NOISE_BELOW_DB
+    untouched = prepare_for_recognition(speech, pad_seconds=stt.PAD_SECONDS, dither=stt.dither_level(speech))
+    assert np.array_equal(stt.prepare(speech), untouched)
+    noisy = add_noise(speech, 10.0, seed=3)
+    assert not np.array_equal(stt.prepare(noisy), prepare_for_recognition(
+        noisy, pad_seconds=stt.PAD_SECONDS, dither=stt.dither_level(noisy)))
