@@ -49,6 +49,7 @@ class CommandGoals:
     def __init__(self, bound: float = WAIT):
         self.bound = bound
         self.watched: list[Watched] = []
+        self.waited_out = False  # did the last `refusals` end because the bound was over (not every goal settled)?
         self._changed = threading.Condition()
 
     def send(self, client, goal, uav_id: int, verb: str) -> None:
@@ -76,10 +77,14 @@ class CommandGoals:
         needed: until each is done or settled)."""
         deadline = time.monotonic() + self.bound
         with self._changed:
+            self.waited_out = False
             while self.watched:
                 now = time.monotonic()
                 settled = max(w.settled_at() for w in self.watched)
-                if settled <= now or deadline <= now:
+                if settled <= now:
+                    break
+                if deadline <= now:
+                    self.waited_out = True
                     break
                 self._changed.wait(min(settled, deadline) - now)
             return [w for w in self.watched if w.status in (GoalStatus.ABORTED, GoalStatus.REJECTED)]
