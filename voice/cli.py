@@ -27,6 +27,14 @@ class CliError(Exception):
     """Bad input: printed as `magna voice: <message>`, exit status 2."""
 
 
+def _check_confirmation(args) -> None:
+    if not 0.0 <= args.confirm_below <= 1.01:
+        raise CliError(f"--confirm-below {args.confirm_below:g}: give a confidence from 0 (never ask) to 1.01 "
+                       "(always ask)")
+    if args.confirm_seconds <= 0:
+        raise CliError(f"--confirm-seconds {args.confirm_seconds:g}: give a positive number of seconds")
+
+
 def _uav_ids(text: str | None) -> list[int]:
     if not text:
         return []
@@ -104,7 +112,7 @@ def _assistant(args, ids, recognizer=None):
     say = None
     if args.speak:
         from voice.synth import speak as say
-    options = {"confirm_seconds": args.confirm_seconds}
+    options = {"confirm_seconds": args.confirm_seconds, "confirm_threshold": args.confirm_below}
     if args.dry_run:
         return Assistant(None, ids, say, recognizer, **options)
     from voice.backend import GroundStationClient
@@ -126,6 +134,7 @@ def cmd_assistant(args) -> int:
     from voice.backend import BackendError
 
     ids = _uav_ids(args.uavs)
+    _check_confirmation(args)
     audio = args.mic or args.audio
     if args.mic:  # fail early and clearly when there is no microphone
         from voice.audio import NoAudioDevice, list_input_devices
@@ -228,7 +237,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--wait", type=float, default=30.0, metavar="S",
                         help="seconds to wait for each of: the ROS master, the ground station's service and "
                              "(without --uavs) the mission's UAVs (default %(default)g)")
-    from voice.assistant import CONFIRM_SECONDS
+    from voice.assistant import CONFIRM_SECONDS, CONFIRM_THRESHOLD
+
+    parser.add_argument("--confirm-below", type=float, default=CONFIRM_THRESHOLD, metavar="C",
+                        help="spoken commands that move aircraft or change the mission are confirmed when the "
+                             "recogniser's confidence is below C (0..1; 1.01 confirms every one; default %(default)g, "
+                             "calibrated: voice/README.md)")
 
     parser.add_argument("--confirm-seconds", type=float, default=CONFIRM_SECONDS, metavar="S",
                         help="seconds to answer \"did you say ...?\" before the command is dropped "

@@ -33,6 +33,23 @@ def test_the_old_spelling_still_works_with_one_line(capsys):
     assert capsys.readouterr().err.splitlines() == [deprecation_line(PROG, "--utterances", "-o/--output")]
 
 
+@pytest.mark.parametrize("option,value,fix", [("--confirm-below", "2", "from 0 (never ask) to 1.01"),
+                                               ("--confirm-seconds", "0", "a positive number of seconds")])
+def test_a_bad_confirmation_setting_is_refused_with_its_fix(capsys, option, value, fix):
+    assert cli.run(parse("--dry-run", option, value)) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"magna voice: {option} {value}: ") and fix in err
+
+
+def test_the_confirmation_settings_reach_the_assistant():
+    from voice.assistant import CONFIRM_SECONDS, CONFIRM_THRESHOLD
+
+    default = cli._assistant(parse("--dry-run"), [1])
+    assert (default.confirm_threshold, default.confirm_seconds) == (CONFIRM_THRESHOLD, CONFIRM_SECONDS)
+    chosen = cli._assistant(parse("--dry-run", "--confirm-below", "1.01", "--confirm-seconds", "4"), [1])
+    assert (chosen.confirm_threshold, chosen.confirm_seconds) == (1.01, 4.0)
+
+
 def test_every_help_has_examples_that_name_commands_that_exist():
     parser = argparse.ArgumentParser(prog=PROG)
     cli.add_arguments(parser)
