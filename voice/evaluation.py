@@ -17,6 +17,10 @@ from voice.interpret import Command, Question
 TESTSET_DIR = Path(__file__).resolve().parent / "testset"
 TESTSETS = {"commands": TESTSET_DIR / "commands.jsonl", "held_out": TESTSET_DIR / "held_out.jsonl",
             "fresh": TESTSET_DIR / "fresh.jsonl"}
+# The spoken held-out set: frozen on 2026-11-27 (commit 88facd3) before anything was measured on it, and never
+# tuned on. Its hash is checked by voice/tests/test_testset.py, so an edit cannot go unnoticed.
+HELD_OUT = TESTSET_DIR / "spoken_held_out.jsonl"
+HELD_OUT_SHA256 = "d14d66fa0aa0c9a0131cbaf884cbe046c813d69d1d3e1fc80c61381b800a46d9"
 TEST_UAV_IDS = (1, 2, 3)
 
 

@@ -49,3 +49,15 @@ def test_exact_match_needs_every_parameter_and_nothing_more():
     assert not matches(result, {**expect, "parameters": {"target": 1.0, "distance": 3.5}})
     assert not matches(result, {**expect, "agent": "all"})
     assert not matches(result, "question")
+
+
+def test_the_held_out_set_is_still_the_frozen_one():
+    """Frozen on 2026-11-27 and never tuned on: an edit to it must be a deliberate new freeze (new hash, new date)."""
+    import hashlib
+
+    from voice.evaluation import HELD_OUT, HELD_OUT_SHA256
+
+    assert hashlib.sha256(HELD_OUT.read_bytes()).hexdigest() == HELD_OUT_SHA256
+    cases = load_cases(HELD_OUT)
+    assert len(cases) == 120 and all(c.expect == "question" or c.expect["agent"] in ("1", "2", "3", "all")
+                                     for c in cases)
