@@ -3,8 +3,10 @@
 
 Gym/Operator_Control waits for the operator with both UAVs on their pads. Typed: "drone one,
 please take off to two meters" must lift UAV 1 to about 2 m. Spoken: the test makes a WAV of
-"drone one, go up two meters" with espeak-ng and runs the assistant node on it as an operator
-would (rosrun magna_master voice --audio FILE); UAV 1 must climb 2 m more. A sentence without a
+"drone one, climb two meters" with espeak-ng and runs the assistant node on it as an operator
+would (rosrun magna_master voice --audio FILE YES), followed by a spoken "yes" for when the assistant
+is unsure and asks "did you say ...?" (a blind yes: were the climb misheard, the wrong command would
+fly and the test fail); UAV 1 must climb 2 m more. A sentence without a
 UAV gets a question and sends nothing; the battery is answered; "resume" lets the mission land:
 UAV 1 comes down and the mission ends completed through its nominal landing.
 
@@ -120,9 +122,10 @@ class VoiceCommands(unittest.TestCase):
 
         before = seen["z"]
         with tempfile.TemporaryDirectory() as tmp:
-            wav = os.path.join(tmp, "go_up.wav")
-            synthesize_to_file("drone one, go up two meters", wav)
-            spoken = voice_node("--audio", wav)
+            wav, yes = os.path.join(tmp, "go_up.wav"), os.path.join(tmp, "yes.wav")
+            synthesize_to_file("drone one, climb two meters", wav)
+            synthesize_to_file("yes", yes)  # the answer if the assistant asks "did you say ...?"
+            spoken = voice_node("--audio", wav, yes)
         self.assertEqual(spoken.returncode, 0, spoken.stdout + spoken.stderr)
         self.assertIn("UAV 1: move (direction up, distance 2 m)", spoken.stdout)
         self.assertNotIn("refused", spoken.stdout, spoken.stdout + spoken.stderr)
