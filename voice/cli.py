@@ -142,11 +142,12 @@ def cmd_assistant(args) -> int:
         if not list_input_devices():
             raise CliError(str(NoAudioDevice("no audio input device found: plug in a microphone, or use --keyboard "
                                              "(type the sentences) or --audio FILE.wav")))
-    recognizer = _recognizer(args, ids) if audio else None
     try:
-        assistant = _assistant(args, ids, recognizer)
+        assistant = _assistant(args, ids)
     except BackendError as error:
         raise CliError(str(error)) from None
+    if audio:  # made for the UAVs the mission flies (learnt from the ground station without --uavs)
+        assistant.recognizer = _recognizer(args, assistant.uav_ids)
     if args.audio:
         from voice.audio import read_wav
 

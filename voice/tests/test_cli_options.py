@@ -50,6 +50,30 @@ def test_the_confirmation_settings_reach_the_assistant():
     assert (chosen.confirm_threshold, chosen.confirm_seconds) == (1.01, 4.0)
 
 
+def test_the_recogniser_is_made_for_the_uavs_the_assistant_commands(monkeypatch, tmp_path):
+    """Its grammar and language model name those UAVs (the mission's, from the ground station, without --uavs)."""
+    import voice.speech
+
+    made_for = []
+
+    class Deaf:
+        def transcribe(self, samples):
+            from voice.stt import Transcript
+
+            return Transcript("", [], 0.0)
+
+    monkeypatch.setattr(voice.speech, "make_recognizer",
+                        lambda online=False, uav_ids=(), cache_dir=None: made_for.append(list(uav_ids)) or Deaf())
+    wav = tmp_path / "quiet.wav"
+    import numpy as np
+
+    from voice.audio import write_wav
+
+    write_wav(wav, np.zeros(1600, dtype=np.int16))
+    assert cli.run(parse("--dry-run", "--uavs", "1,2", "--audio", str(wav))) == 0
+    assert made_for == [[1, 2]]
+
+
 def test_every_help_has_examples_that_name_commands_that_exist():
     parser = argparse.ArgumentParser(prog=PROG)
     cli.add_arguments(parser)
