@@ -61,3 +61,15 @@ def test_other_autopilots_and_modes_are_refused_with_what_is_known():
 ])
 def test_ual_state(position_valid, armed, landed, auto, call, state):
     assert ual_state.ual_state(position_valid, armed, landed, auto, call) == state, ual_state.NAMES[state]
+
+
+@pytest.mark.parametrize("armed", [True, False])
+def test_a_landed_state_not_heard_yet_is_not_read_as_flying(armed):
+    """Early in a lossy link, before the first EXTENDED_SYS_STATE, an armed vehicle on its pad is not FLYING_AUTO:
+    its state is not known yet. Once heard, or once the wait is over without one, the usual rules apply."""
+    pending = ual_state.ual_state(True, armed, LANDED_UNDEFINED, True, None, landed_state_pending=True)
+    assert pending == UNINITIALIZED
+    heard = ual_state.ual_state(True, armed, ON_GROUND, True, None, landed_state_pending=True)
+    assert heard == (LANDED_ARMED if armed else LANDED_DISARMED)
+    never_sent = ual_state.ual_state(True, armed, LANDED_UNDEFINED, True, None, landed_state_pending=False)
+    assert never_sent == (FLYING_AUTO if armed else LANDED_DISARMED)

@@ -123,3 +123,14 @@ def test_extended_sys_state_on_ground():
     state = VehicleState()
     state.update(mavlink.MAVLink_extended_sys_state_message(0, ON_GROUND), now=0.0)
     assert state.snapshot().landed_state == ON_GROUND
+
+
+def test_the_first_message_and_whether_a_landed_state_came_are_kept():
+    state = VehicleState()
+    state.update(heartbeat("OFFBOARD", armed=True), now=4.0)
+    state.update(local(0.0, 0.0, 0.0), now=4.5)
+    t = state.snapshot()
+    assert (t.first_heard_time, t.heard_time, t.landed_state_heard) == (4.0, 4.5, False)
+    state.update(mavlink.MAVLink_extended_sys_state_message(0, ON_GROUND), now=5.0)
+    t = state.snapshot()
+    assert (t.first_heard_time, t.landed_state_heard, t.landed_state) == (4.0, True, ON_GROUND)

@@ -52,6 +52,7 @@ from .ual_state import (
     LAND_CALL,
     LANDED_ARMED,
     LANDED_DISARMED,
+    LANDED_STATE_WAIT,
     NAMES,
     ON_GROUND,
     TAKE_OFF_CALL,
@@ -171,7 +172,9 @@ class UalBackend:
             return UNINITIALIZED
         op = self._op
         call = op.name if op is not None and not op.finished and op.name in (TAKE_OFF_CALL, LAND_CALL) else None
-        return ual_state(True, t.armed, t.landed_state, t.follows_set_points, call)
+        pending = (not t.landed_state_heard and t.first_heard_time is not None
+                   and self._now - t.first_heard_time < LANDED_STATE_WAIT)
+        return ual_state(True, t.armed, t.landed_state, t.follows_set_points, call, landed_state_pending=pending)
 
     def _update_link(self, t: Telemetry, now: float) -> bool:
         # Any message counts as a sign of life, not only the 1 Hz HEARTBEAT: through a radio that loses one

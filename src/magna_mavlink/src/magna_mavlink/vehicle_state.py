@@ -41,6 +41,8 @@ class Telemetry:
 
     heartbeat_time: float | None = None  # the latest HEARTBEAT of the autopilot
     heard_time: float | None = None  # the latest message of any kind from it: the link is alive
+    first_heard_time: float | None = None  # its first message of any kind
+    landed_state_heard: bool = False  # an EXTENDED_SYS_STATE has come (some autopilots never send one)
     autopilot: str | None = None
     mode: ap.Mode | None = None
     armed: bool = False
@@ -107,7 +109,8 @@ class VehicleState:
         handler = getattr(self, "_on_" + msg.get_type(), None)
         with self._lock:
             changes = (handler(msg, now) if handler is not None else None) or {}
-            self._t = replace(self._t, heard_time=now, **changes)
+            first = self._t.first_heard_time if self._t.first_heard_time is not None else now
+            self._t = replace(self._t, heard_time=now, first_heard_time=first, **changes)
 
     # --- one method per message ---------------------------------------------------------------------------------
     def _on_HEARTBEAT(self, msg, now):
@@ -121,7 +124,7 @@ class VehicleState:
                 "system_status": msg.system_status}
 
     def _on_EXTENDED_SYS_STATE(self, msg, now):
-        return {"landed_state": msg.landed_state}
+        return {"landed_state": msg.landed_state, "landed_state_heard": True}
 
     def _on_LOCAL_POSITION_NED(self, msg, now):
         self._local = frames.ned_to_enu((msg.x, msg.y, msg.z))
