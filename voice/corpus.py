@@ -24,7 +24,8 @@ PREFIXES = ["", "", "", "please", "okay", "now", "uh", "um", "could you", "can y
 SUFFIXES = ["", "", "", "please", "now", "right now", "thanks", "okay"]
 
 
-def _of(table: dict[str, str], *values: str) -> list[str]:
+def phrases_of(table: dict[str, str], *values: str) -> list[str]:
+    """The phrases of a vocabulary table that mean one of `values` (every phrase without values)."""
     return [phrase for phrase, value in table.items() if not values or value in values]
 
 
@@ -72,14 +73,14 @@ def spoken(phrases: Iterable[str]) -> list[str]:
 def _slot_values(uav_ids: list[int]) -> dict[str, list[str]]:
     uavs = _uav_names(uav_ids)
     every = list(vocab.ALL_PHRASES)
-    move_verbs = [p for p in _of(vocab.ACTIONS, "move") if p not in vocab.ACTION_DIRECTIONS]
+    move_verbs = [p for p in phrases_of(vocab.ACTIONS, "move") if p not in vocab.ACTION_DIRECTIONS]
     return {
         "who": uavs + every, "who2": uavs,
-        "takeoff": _of(vocab.ACTIONS, "take_off"), "land": _of(vocab.ACTIONS, "land"), "move": move_verbs,
-        "climb": list(vocab.ACTION_DIRECTIONS), "turn": _of(vocab.ACTIONS, "turn"),
-        "follow": [p for p in _of(vocab.ACTIONS, "follow") if not p.startswith(("stay", "keep", "behind"))],
-        "set": _of(vocab.ACTIONS, "set"), "standby": _of(vocab.ACTIONS, "standby"),
-        "resume": _of(vocab.ACTIONS, "resume"),
+        "takeoff": phrases_of(vocab.ACTIONS, "take_off"), "land": phrases_of(vocab.ACTIONS, "land"), "move": move_verbs,
+        "climb": list(vocab.ACTION_DIRECTIONS), "turn": phrases_of(vocab.ACTIONS, "turn"),
+        "follow": [p for p in phrases_of(vocab.ACTIONS, "follow") if not p.startswith(("stay", "keep", "behind"))],
+        "set": phrases_of(vocab.ACTIONS, "set"), "standby": phrases_of(vocab.ACTIONS, "standby"),
+        "resume": phrases_of(vocab.ACTIONS, "resume"),
         "dir": [p for p in vocab.DIRECTIONS if vocab.DIRECTIONS[p] not in vocab.AXES],
         "axis": ["x", "y", "z"], "side": list(vocab.TURN_SIDES),
         "param": [p for p in vocab.PARAMETERS if p not in ("where", "doing")],

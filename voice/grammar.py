@@ -1,7 +1,8 @@
 """A JSGF grammar of every command that can be said, generated from the vocabulary and the mission's UAVs.
 
-The recogniser searches this grammar first: it can only hear whole commands, so a dropped or
-confused short word ("go on" for "go up") cannot turn a command into another. The grammar is made
+The offline language model is trained on sentences sampled from it, and the recogniser's n-best is
+rescored by it (voice.rescoring): a hypothesis it can say wins over one it cannot. (Pocketsphinx's own
+grammar search was measured on it and is too slow: 2-28 s per utterance.) The grammar is made
 of the same tables the parser reads (voice.vocabulary), in the word orders people use: the UAV
 named before or after what it must do, fillers at the edges and after the name, units optional,
 numbers as said ("two point five", "a hundred and twenty", "one and a half", "half a").
@@ -17,6 +18,7 @@ from dataclasses import dataclass
 
 from voice import corpus
 from voice import vocabulary as vocab
+from voice.corpus import phrases_of
 from voice.numbers import TENS, UNITS, say_integer
 
 GRAMMAR_NAME = "magna_commands"
@@ -40,10 +42,6 @@ def _alternatives(phrases: Iterable[str]) -> str:
     return " | ".join(words)
 
 
-def _of(table: dict[str, str], *values: str) -> list[str]:
-    return [phrase for phrase, value in table.items() if value in values]
-
-
 def _number_rules() -> list[str]:
     digits = [w for w, v in UNITS.items() if 1 <= v <= 9 and w != "oh"]
     teens = [w for w, v in UNITS.items() if v >= 10]
@@ -65,8 +63,8 @@ def jsgf(uav_ids: Iterable[int]) -> str:
     length_units = [u for u, (_, unit, _) in vocab.UNITS.items() if unit == "m" and len(u) > 2]
     angle_units = [u for u, (_, unit, _) in vocab.UNITS.items() if unit == "deg" and len(u) > 3]
     directions = [p for p, v in vocab.DIRECTIONS.items() if v not in vocab.AXES]
-    move_verbs = [p for p in _of(vocab.ACTIONS, "move") if p not in vocab.ACTION_DIRECTIONS]
-    follow_verbs = [p for p in _of(vocab.ACTIONS, "follow") if not p.startswith(("stay", "keep", "behind"))]
+    move_verbs = [p for p in phrases_of(vocab.ACTIONS, "move") if p not in vocab.ACTION_DIRECTIONS]
+    follow_verbs = [p for p in phrases_of(vocab.ACTIONS, "follow") if not p.startswith(("stay", "keep", "behind"))]
     parameters = [p for p in vocab.PARAMETERS if p not in ("where", "doing")]
     rules = [
         "#JSGF V1.0;",
@@ -86,29 +84,31 @@ def jsgf(uav_ids: Iterable[int]) -> str:
         f"<axis> = {_alternatives(vocab.AXES)};",
         f"<side> = {_alternatives(vocab.TURN_SIDES)};",
         *_number_rules(),
-        f"<take_off> = ({_alternatives(_of(vocab.ACTIONS, 'take_off'))})"
+        f"<take_off> = ({_alternatives(phrases_of(vocab.ACTIONS, 'take_off'))})"
         " [[and climb] [up] to [a height of | an altitude of] <length> [<lunit>]];",
-        f"<land> = {_alternatives(_of(vocab.ACTIONS, 'land'))};",
+        f"<land> = {_alternatives(phrases_of(vocab.ACTIONS, 'land'))};",
         f"<move_verb> = {_alternatives(move_verbs)};",
         f"<climb_verb> = {_alternatives(vocab.ACTION_DIRECTIONS)};",
         "<move> = ([<move_verb>] (<dir> [by] | [minus | negative]) | <climb_verb> [by]) <length> [<lunit>]"
         " [[to the] <dir> | along [the] <axis> [axis]]"
         " | <move_verb> along [the] <axis> [axis] [by] [minus] <length> [<lunit>];",
-        f"<turn> = ({_alternatives(_of(vocab.ACTIONS, 'turn'))}) [to the] [<side>] [by] <integer> [<aunit>]"
+        f"<turn> = ({_alternatives(phrases_of(vocab.ACTIONS, 'turn'))}) [to the] [<side>] [by] <integer> [<aunit>]"
         " [to the <side> | <side>];",
         f"<follow> = (({_alternatives(follow_verbs)}) | [stay | keep] <length> [<lunit>] behind | (stay | keep) behind)"
         " <uav> [at [a distance of] <length> [<lunit>] | keeping <length> [<lunit>]];",
         f"<algorithm> = [the] ({_alternatives(vocab.ALGORITHMS)}) [algorithm];",
-        f"<set> = ({_alternatives(_of(vocab.ACTIONS, 'set'))}) [[the algorithm of] <who>] [to] <algorithm> [for <who>]"
+        f"<set> = ({_alternatives(phrases_of(vocab.ACTIONS, 'set'))})"
+        " [[the algorithm of] <who>] [to] <algorithm> [for <who>]"
         " | (fly | navigate) with <algorithm> | go back to <algorithm>;",
         f"<parameter> = {_alternatives(parameters)};",
         "<query> = what is the <parameter> [level] of <who> | what is <who> doing | what state is <who> in"
         " | where is <who> | how (is | are) <who> doing | how much battery does <who> have"
         " | <who> (report | what is) your <parameter> | (check | tell me | give me | show | report)"
         " the <parameter> of <who> | is <who> (airborne | flying | landed | in the air | on the ground);",
-        f"<mission> = [<everyone>] ({_alternatives(_of(vocab.ACTIONS, 'standby'))})"
+        f"<mission> = [<everyone>] ({_alternatives(phrases_of(vocab.ACTIONS, 'standby'))})"
         f" [the ({_alternatives(vocab.MISSION_COMPONENTS)})]"
-        f" | ({_alternatives(_of(vocab.ACTIONS, 'resume'))}) [[with] the ({_alternatives(vocab.MISSION_COMPONENTS)})];",
+        f" | ({_alternatives(phrases_of(vocab.ACTIONS, 'resume'))})"
+        f" [[with] the ({_alternatives(vocab.MISSION_COMPONENTS)})];",
         f"<answer> = {_alternatives(YES_WORDS)} | {_alternatives(NO_WORDS)} | <who> | <length> [<lunit> | <aunit>]"
         " | <dir> | <algorithm>;",
     ]

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from voice.audio import SAMPLE_RATE, estimated_snr_db, prepare_for_recognition, suppress_noise
+from voice.audio import SAMPLE_RATE, estimated_snr_db, frame_rms, prepare_for_recognition, suppress_noise
 from voice.speech_model import ACOUSTIC_MODEL, SpeechModel
 
 MAX_ALTERNATIVES = 10  # what the online recogniser returns at most
@@ -31,7 +31,6 @@ DITHER_LSB = 30.0
 # voice.corpus model from 83/160 to 99/160. Ratios 0.03 / 0.05 / 0.1 / 0.2 / 0.3 gave 144 / 150 / 149 / 141 / 85
 # of 160. Recordings whose own noise floor is already that high get only the 30 LSB dither.
 NOISE_FLOOR_RATIO = 0.05
-FRAME = 480  # 30 ms
 SUPPRESS_NOISE_BELOW_DB = 30.0  # estimated SNR under which the background is suppressed; clean speech is left alone
 
 # Decoder settings, measured on espeak-ng speech of 40 sentences x 4 voices (en-us, +m3, +f2, +m7) at 140-175
@@ -79,10 +78,9 @@ def as_int16(samples: np.ndarray) -> np.ndarray:
 
 def dither_level(samples: np.ndarray) -> float:
     """Standard deviation (LSB) of the noise to add so the noise floor is NOISE_FLOOR_RATIO of the speech level."""
-    x = as_int16(samples).astype(np.float64)
-    if x.size < FRAME:
+    rms = frame_rms(as_int16(samples))
+    if rms.size == 0:
         return DITHER_LSB
-    rms = np.sqrt(np.mean(x[: x.size // FRAME * FRAME].reshape(-1, FRAME) ** 2, axis=1))
     target, floor = NOISE_FLOOR_RATIO * np.percentile(rms, 90), np.percentile(rms, 10)
     return float(max(DITHER_LSB, np.sqrt(max(0.0, target**2 - floor**2))))
 

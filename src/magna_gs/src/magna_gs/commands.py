@@ -147,10 +147,6 @@ def _amount(value: float) -> str:
     return f"{round(float(value), 2) + 0.0:g}"
 
 
-# What a command needs of the UAL (as the UAL guards its services), and the words for each UAL state.
-_VERBS = {"take_off": "take off", "land": "land", "move": "move", "turn": "turn", "follow": "follow"}
-
-
 def _unable(action: str, uav: UavStatus) -> tuple[str, str] | None:
     """Why `uav` cannot `action` in its UAL state, as (what it is, what to do first), or None when it can."""
     state, who = uav.ual_state, f"UAV {uav.id}"
@@ -186,7 +182,7 @@ def _refuse_states(action: str, ids: list[int], uavs: Mapping[int, UavStatus]) -
         return
     states = [what for what, _ in unable]
     subject = states[0] if len(states) == 1 else ", ".join(states[:-1]) + " and " + states[-1]
-    text = f"{subject}, so {'it' if len(unable) == 1 else 'they'} cannot {_VERBS[action]}"
+    text = f"{subject}, so {'it' if len(unable) == 1 else 'they'} cannot {action.replace('_', ' ')}"
     hints = {hint for _, hint in unable}
     if len(hints) == 1 and "" not in hints:
         text += f": {hints.pop()}"
