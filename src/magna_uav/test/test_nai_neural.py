@@ -240,3 +240,81 @@ def test_the_nai_keeps_one_model_per_role_and_hovers_for_a_role_without_one(tmp_
     assert set(nav.models) == {"path", "agent_ap"} and nav.params()["model"] == str(tmp_path / "ap_net.pt")
     with pytest.raises(ValueError, match="give the model path once"):
         nav.control("neural_network", "set", ["model"], ["a.pt"], text_value="b.pt")
+
+
+# --- the teacher (DAgger) and the safety fallback -----------------------------------------------------------------
+
+def crossing_world():
+    """UAV 2 comes head on 3 m ahead; a post stands 2 m to the left: ORCA-3D must turn away."""
+    view = WorldView(1)
+    view.update_agent(AgentState(1, [0, 0, 5], velocity=[1.0, 0, 0], safety_radius=0.3))
+    view.update_agent(AgentState(2, [3, 0.1, 5], velocity=[-1.0, 0, 0], safety_radius=0.3))
+    view.set_obstacles([Obstacle("post", np.array([1.0, 2.0, 5]), 0.5)])
+    return view
+
+
+def test_while_a_network_flies_the_command_carries_orca3ds_answer_from_the_same_inputs(tmp_path):
+    path = save(tmp_path, TowardsGoal(input_size("path", 2, 1)))
+    teacher_params = (["N_neighbors_aware", "timeHorizon", "agent_radius"], [1, 4.0, 0.4])
+    nav = NavigationInterface(2.0, 0.3, solver=ReferenceSolver())
+    nav.control("orca3d", "configure", *teacher_params)  # what the variant's ORCA configure state does
+    nav.control("neural_network", "set", text_value=str(path))
+    orca = NavigationInterface(2.0, 0.3, solver=ReferenceSolver())
+    orca.control("orca3d", "set", *teacher_params)
+    for goal in (Goal([10, 0, 5]), Goal([2, 1, 6]), Goal([0, 0, 9])):
+        flown, taught = nav.velocity(crossing_world(), goal), orca.velocity(crossing_world(), goal)
+        assert flown.algorithm == "neural_network" and not flown.fallback
+        np.testing.assert_array_equal(flown.teacher_velocity, taught.velocity)  # the same solve, bit for bit
+    # head on, the network flies straight at UAV 2 while the teacher turns right, away from it and the post
+    head_on = nav.velocity(crossing_world(), Goal([10, 0, 5]))
+    assert head_on.velocity[1] == 0.0 and head_on.teacher_velocity[1] < -0.3
+    # ORCA-3D flying, or a basic move under the network: nothing to relabel
+    assert orca.velocity(crossing_world(), Goal([10, 0, 5])).teacher_velocity is None
+    assert nav.velocity(crossing_world(), Goal([0, 0, 9], role="basic_move")).teacher_velocity is None
+    # with other ORCA-3D parameters the teacher answers otherwise: it follows them
+    nav.control("orca3d", "configure", ["timeHorizon"], [0.5])
+    assert not np.allclose(nav.velocity(crossing_world(), Goal([10, 0, 5])).teacher_velocity,
+                           orca.velocity(crossing_world(), Goal([10, 0, 5])).velocity)
+
+
+def test_the_fallback_sends_the_teachers_answer_only_when_the_networks_would_collide(tmp_path):
+    path = save(tmp_path, TowardsGoal(input_size("path", 2, 1), gain=1.0))
+    nav = NavigationInterface(2.0, 0.3, solver=ReferenceSolver())
+    nav.control("neural_network", "set", ["fallback"], [1], text_value=str(path))
+    assert nav.params("neural_network")["fallback"] == 1
+    # straight at UAV 2: the network's command collides, the teacher's is sent
+    into = nav.velocity(crossing_world(), Goal([10, 0, 5]))
+    assert into.fallback and np.array_equal(into.velocity, into.teacher_velocity)
+    # away from everything: the network's own command goes
+    away = nav.velocity(crossing_world(), Goal([-10, -1, 5]))
+    assert not away.fallback and not np.allclose(away.velocity, away.teacher_velocity)
+    np.testing.assert_allclose(away.velocity, 2.0 * np.array([-10, -1, 0]) / np.hypot(10, 1), rtol=1e-6)
+    # off by default: the plain network flies into it
+    nav.control("neural_network", "configure", ["fallback"], [0])
+    plain = nav.velocity(crossing_world(), Goal([10, 0, 5]))
+    assert not plain.fallback and plain.velocity[0] == pytest.approx(2.0)
+    with pytest.raises(ValueError, match="fallback is 2: give 0 .* or 1"):
+        nav.control("neural_network", "configure", ["fallback"], [2])
+
+
+@pytest.mark.parametrize("velocity,others,expected", [
+    ([1, 0, 0], [AgentState(2, [3, 0, 5], velocity=[-1, 0, 0])], True),  # head on: closes 2 m/s, 2 m to go
+    ([-1, 0, 0], [AgentState(2, [3, 0, 5], velocity=[-1, 0, 0])], False),  # same velocity: the gap stays
+    ([0, 0.2, 0], [AgentState(2, [3, 0, 5], velocity=[-1, 0, 0])], True),  # too little aside: it runs into us
+    ([0, 1, 0], [AgentState(2, [3, 0, 5], velocity=[-1, 0, 0])], False),  # enough aside: it passes 2.1 m off
+    ([1, 0, 0], [AgentState(2, [9, 0, 5])], False),  # 8 m to the 1 m reach at 1 m/s: 8 s, beyond the 5 s horizon
+    ([2, 0, 0], [AgentState(2, [9, 0, 5])], True),  # at 2 m/s: 4 s
+    ([0, 0, 1], [AgentState(2, [0.5, 0, 5])], False),  # overlapping already, moving sideways: no closer
+    ([-1, 0, 0], [AgentState(2, [0.5, 0, 5])], False),  # overlapping, moving away
+    ([1, 0, 0], [AgentState(2, [0.5, 0, 5])], True),  # overlapping, moving closer
+])
+def test_would_collide_is_the_velocity_obstacle_within_the_horizon(velocity, others, expected):
+    from magna_uav.nai.inputs import select_neighbors
+    from magna_uav.nai.orca import would_collide
+
+    view = WorldView(1)
+    view.update_agent(AgentState(1, [0, 0, 5], safety_radius=0.3))
+    for other in others:
+        view.update_agent(other)
+    neighbors = select_neighbors(view, 1, 0, 20.0)
+    assert would_collide(view, np.array(velocity, float), neighbors, 0.3, 0.5, 5.0) is expected

@@ -36,6 +36,7 @@ def test_column_set_and_order_for_two_other_uavs_and_two_obstacles():
     assert columns([3, 2], n_obstacles=2) == [
         "time", "uav_id", "role", "algorithm", "goal.x", "goal.y", "goal.z",
         "goal_vel.x", "goal_vel.y", "goal_vel.z", "goal_dist", "sel_vel.x", "sel_vel.y", "sel_vel.z",
+        "teacher_vel.x", "teacher_vel.y", "teacher_vel.z", "fallback",
         "pos.x", "pos.y", "pos.z", "ori.x", "ori.y", "ori.z", "ori.w", "vel.x", "vel.y", "vel.z", "yaw_rate",
         "uav2.pos.x", "uav2.pos.y", "uav2.pos.z", "uav2.vel.x", "uav2.vel.y", "uav2.vel.z",
         "uav3.pos.x", "uav3.pos.y", "uav3.pos.z", "uav3.vel.x", "uav3.vel.y", "uav3.vel.z",
@@ -43,8 +44,8 @@ def test_column_set_and_order_for_two_other_uavs_and_two_obstacles():
         "obs0.name", "obs0.pos.x", "obs0.pos.y", "obs0.pos.z", "obs0.gap",
         "obs1.name", "obs1.pos.x", "obs1.pos.y", "obs1.pos.z", "obs1.gap",
         "collision", "collided_with", "out_of_bounds", "low_battery", "battery", "ual_state", "feasible", "outcome"]
-    assert len(columns([], 0)) == 25 + 2 + 8
-    assert len(columns([2], 5)) == 25 + 6 + 2 + 1 + 5 * 5 + 8
+    assert len(columns([], 0)) == 29 + 2 + 8
+    assert len(columns([2], 5)) == 29 + 6 + 2 + 1 + 5 * 5 + 8
     assert Recorder(1, [3, 2], n_obstacles=2).columns == columns([2, 3], 2)
 
 
@@ -213,27 +214,42 @@ def test_read_csv_refuses_a_file_that_is_not_a_recorder_csv(tmp_path):
         read_csv(tmp_path / "short.csv")
 
 
-def test_read_csv_reads_a_file_of_an_older_recorder_with_nan_goal_targets(tmp_path):
+@pytest.mark.parametrize("missing", recorder.LEGACY_GENERATIONS, ids=["no_teacher", "no_goal_target"])
+def test_read_csv_reads_a_file_of_an_older_recorder_with_nan_in_the_columns_it_lacks(tmp_path, missing):
     rec = Recorder(1, [2], n_obstacles=1)
-    record_one(rec, make_view(), goal_velocity=[1, 2, 3], goal_distance=4.0)
+    record_one(rec, make_view(), goal_velocity=[1, 2, 3], goal_distance=4.0, teacher_velocity=[0.1, 0.2, 0.3],
+               fallback=True)
     record_one(rec, make_view(), time=1.6, outcome="succeeded")
     new = rec.save_csv(tmp_path / "new.csv")
-    # the same file as a recorder before goal_vel/goal_dist wrote it: those four columns cut out
+    # the same file as an older recorder wrote it: the columns of that generation cut out
     lines = [line.split(",") for line in new.read_text().splitlines()]
-    keep = [i for i, name in enumerate(lines[0]) if name not in recorder.LEGACY_MISSING]
-    assert len(keep) == len(lines[0]) - 4
+    keep = [i for i, name in enumerate(lines[0]) if name not in missing]
+    assert len(keep) == len(lines[0]) - len(missing)
     old = tmp_path / "old.csv"
     old.write_text("".join(",".join(cells[i] for i in keep) + "\n" for cells in lines))
     header, rows = read_csv(old)
     assert header == rec.columns  # one layout for callers, whatever the file's age
     assert [list(row) for row in rows] == [rec.columns] * 2
     for index, row in enumerate(rows):
-        assert all(math.isnan(row[c]) for c in recorder.LEGACY_MISSING)
+        assert all(row[c] is None if c == "fallback" else math.isnan(row[c]) for c in missing)
         assert row["outcome"] == rec.row(index)["outcome"] and row["goal.x"] == 5 and row["uav2.pos.x"] == 3
+    if "goal_dist" not in missing:
+        assert rows[0]["goal_dist"] == 4.0
     # a header missing other columns as well is still refused
     (tmp_path / "older.csv").write_text(",".join(lines[0][i] for i in keep if lines[0][i] != "yaw_rate") + "\n")
-    with pytest.raises(ValueError, match=r"older.csv: not a recorder CSV header \(missing \['goal_vel.x'"):
+    with pytest.raises(ValueError, match=rf"older.csv: not a recorder CSV header \(missing \['{missing[0]}'"):
         read_csv(tmp_path / "older.csv")
+
+
+def test_the_teacher_columns_hold_the_teachers_answer_and_the_fallback_flag(tmp_path):
+    rec = Recorder(1, [2])
+    record_one(rec, make_view(), algorithm="neural_network", teacher_velocity=[0.25, -0.5, 1.0], fallback=False)
+    record_one(rec, make_view(), algorithm="neural_network", teacher_velocity=[1.0, 0.0, 0.0], fallback=True)
+    record_one(rec, make_view(), algorithm="orca3d")
+    _, rows = read_csv(rec.save_csv(tmp_path / "uav_1.csv"))
+    assert [[row[f"teacher_vel.{a}"] for a in "xyz"] for row in rows[:2]] == [[0.25, -0.5, 1.0], [1.0, 0.0, 0.0]]
+    assert [row["fallback"] for row in rows] == [0, 1, None]
+    assert all(math.isnan(rows[2][f"teacher_vel.{a}"]) for a in "xyz")
 
 
 def test_an_existing_file_is_refused_unless_overwrite(tmp_path):

@@ -17,6 +17,7 @@ import contextlib
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -41,6 +42,16 @@ _TROUBLES = (("collision", "collision"), ("out_of_bounds", ABORTED), ("GS_critic
 WAYPOINT_RESEND_PERIOD = 1.0
 
 log = logging.getLogger("magna_uav.manager")
+
+
+class Executed(NamedTuple):
+    """One step as carried out, for the recorder."""
+
+    velocity: np.ndarray  # commanded (zeros when the UAL autopilot flies)
+    algorithm: str  # who chose it: a navigation algorithm, or "ual"
+    feasible: bool | None = None  # ORCA's feasibility, when it said
+    teacher_velocity: np.ndarray | None = None  # the teacher's answer while a network flies
+    fallback: bool | None = None  # the teacher's answer was sent instead (None: no network flew)
 
 
 @dataclass
@@ -122,18 +133,18 @@ class UavManager:
                     outcome = new_trouble(evaluation, standing)
                     if outcome is not None:
                         self._hover()
-                        self._record(now, None, np.zeros(3), "ual", evaluation, None, outcome)
+                        self._record(now, None, Executed(np.zeros(3), "ual"), evaluation, outcome)
                         return RoleResult(outcome, evaluation.reason, steps + 1, [outcome])
                     step = role.step(self.view, now)
                     try:
-                        chosen, algorithm, feasible = self._execute(step, now)
+                        executed = self._execute(step, now)
                         if step.action in (TAKE_OFF, LAND):  # the UAL's time to show it runs from its answer
                             role.ual_answered(self.clock.now())
                     except CommandRefused as refusal:  # never a success: the action ends aborted, saying why
                         step.outcome, step.message = ABORTED, f"{role.name}: UAL refused: {refusal}"
                         self._hover()
-                        chosen, algorithm, feasible = np.zeros(3), "ual", None
-                    self._record(now, step.goal, chosen, algorithm, evaluation, feasible, step.outcome or "")
+                        executed = Executed(np.zeros(3), "ual")
+                    self._record(now, step.goal, executed, evaluation, step.outcome or "")
                 steps += 1
                 feedback(step)
                 if step.outcome is not None:
@@ -151,14 +162,15 @@ class UavManager:
         self._hold = None
         self._hover()
 
-    def _execute(self, step: RoleStep, now: float) -> tuple[np.ndarray, str, bool | None]:
-        """Carry out one step: the velocity commanded (zeros when the UAL autopilot flies), who chose
-        it (a navigation algorithm, or "ual"), and ORCA's feasibility."""
+    def _execute(self, step: RoleStep, now: float) -> Executed:
+        """Carry out one step; what was commanded, for the recorder."""
         if step.action == FLY:
             command = self.nai.velocity(self.view, step.goal)
             self._hold = None
             self.commander.set_velocity(command.velocity, command.yaw_rate)
-            return np.asarray(command.velocity, dtype=float), command.algorithm, command.feasible
+            teacher = command.teacher_velocity
+            return Executed(np.asarray(command.velocity, dtype=float), command.algorithm, command.feasible,
+                            teacher, None if teacher is None else command.fallback)
         if step.action == WAYPOINT:
             assert step.goal is not None, "a waypoint step without its waypoint"  # every role gives one
             target = np.asarray(step.goal.position, dtype=float)
@@ -175,7 +187,7 @@ class UavManager:
             self._hover()
         elif step.action != WAIT:
             raise ValueError(f"role step action {step.action!r} is unknown")
-        return np.zeros(3), "ual", None
+        return Executed(np.zeros(3), "ual")
 
     def keep_hovering(self) -> None:
         """Send the held pose again: a velocity command still in flight on another topic when the
@@ -193,11 +205,12 @@ class UavManager:
         self._sent_waypoint = None
         self.commander.hold_pose(*self._hold)
 
-    def _record(self, now, goal, chosen, algorithm, evaluation, feasible, outcome) -> None:
+    def _record(self, now, goal, executed: Executed, evaluation, outcome) -> None:
         if self.recorder is None or not self.view.has_own:
             return
         goal_position = goal.position if goal is not None else np.full(3, np.nan)
-        self.recorder.record(now, self.role_name, algorithm, goal_position, chosen, self.view,
-                             evaluation=evaluation, feasible=feasible, outcome=outcome,
+        self.recorder.record(now, self.role_name, executed.algorithm, goal_position, executed.velocity, self.view,
+                             evaluation=evaluation, feasible=executed.feasible, outcome=outcome,
+                             teacher_velocity=executed.teacher_velocity, fallback=executed.fallback,
                              goal_velocity=None if goal is None else goal.velocity,
                              goal_distance=None if goal is None else goal.distance)

@@ -13,8 +13,9 @@ package README ("Recorder CSV columns"); mlr trains from these files, so change 
 Values: floats in shortest round-trip form ("nan" when unknown), flags 0/1, ids and UAL states
 as integers, text as is; `feasible` is empty when the algorithm did not say.
 
-`read_csv` also reads files written before the goal's target velocity and distance were
-recorded (`LEGACY_MISSING`): those columns come back NaN.
+`read_csv` also reads files written before the goal's target velocity and distance, or the
+teacher's answer, were recorded (`LEGACY_GENERATIONS`): those columns come back NaN (the
+fallback flag: unknown).
 """
 from __future__ import annotations
 
@@ -41,15 +42,19 @@ XYZ = ("x", "y", "z")
 # goal_vel / goal_dist: what a follower role knows of its target (Goal.velocity, Goal.distance); the
 # network inputs of agent_ad / agent_ap need them, so mlr must find them in the rows.
 GOAL_TARGET = (*(f"goal_vel.{a}" for a in XYZ), "goal_dist")
+# teacher_vel: ORCA-3D's answer from the same inputs while a network flies (DAgger relabels with it);
+# fallback: the teacher's answer was sent because the network's would have collided (NAI docstring).
+TEACHER = (*(f"teacher_vel.{a}" for a in XYZ), "fallback")
 _HEAD = (["time", "uav_id", "role", "algorithm"] + [f"goal.{a}" for a in XYZ] + list(GOAL_TARGET)
-         + [f"sel_vel.{a}" for a in XYZ] + [f"pos.{a}" for a in XYZ] + [f"ori.{a}" for a in (*XYZ, "w")]
-         + [f"vel.{a}" for a in XYZ] + ["yaw_rate"])
-LEGACY_MISSING = GOAL_TARGET  # columns that files of older recorders lack; read_csv gives them NaN
+         + [f"sel_vel.{a}" for a in XYZ] + list(TEACHER) + [f"pos.{a}" for a in XYZ]
+         + [f"ori.{a}" for a in (*XYZ, "w")] + [f"vel.{a}" for a in XYZ] + ["yaw_rate"])
+# The columns that files of older recorders lack, newest generation first; read_csv gives them NaN.
+LEGACY_GENERATIONS = (TEACHER, GOAL_TARGET + TEACHER)
 _TAIL = ["collision", "collided_with", "out_of_bounds", "low_battery", "battery", "ual_state", "feasible", "outcome"]
 
 TEXT_COLUMNS = frozenset({"role", "algorithm", "collided_with", "outcome"})  # and every obs{k}.name
 INT_COLUMNS = frozenset({"uav_id", "collision", "out_of_bounds", "low_battery", "ual_state"})
-OPTIONAL_FLAG_COLUMNS = frozenset({"feasible"})  # 0/1, or empty (None) when unknown
+OPTIONAL_FLAG_COLUMNS = frozenset({"feasible", "fallback"})  # 0/1, or empty (None) when unknown
 
 
 def columns(other_ids: Iterable[int], n_obstacles: int = DEFAULT_OBSTACLES) -> list[str]:
@@ -211,11 +216,13 @@ class Recorder:
     def record(self, time: float, role: str, algorithm: str, goal_position: Sequence[float] | None,
                chosen_velocity: Sequence[float] | None, view: WorldView, evaluation=None,
                feasible: bool | None = None, outcome: str = "", goal_velocity: Sequence[float] | None = None,
-               goal_distance: float | None = None) -> int:
+               goal_distance: float | None = None, teacher_velocity: Sequence[float] | None = None,
+               fallback: bool | None = None) -> int:
         """Append the row of this control step; returns its index.
 
         goal_velocity / goal_distance: the goal's target velocity and kept distance (follower
-        roles); None gives NaN.
+        roles); None gives NaN. teacher_velocity / fallback: the teacher's answer while a network
+        flies, and whether it was sent; None gives NaN / unknown.
 
         Positions, velocities and which obstacles are nearest come from `view`; gaps, collisions,
         out_of_bounds and low_battery come from `evaluation` (duck-typed: nearest_agent_gap,
@@ -232,7 +239,8 @@ class Recorder:
         row: list = [float(time), self.uav_id, str(role), str(algorithm)]
         row += _vector(goal_position, 3) + _vector(goal_velocity, 3)
         row.append(NAN if goal_distance is None else float(goal_distance))
-        row += _vector(chosen_velocity, 3)
+        row += _vector(chosen_velocity, 3) + _vector(teacher_velocity, 3)
+        row.append(None if fallback is None else int(bool(fallback)))
         if own is not None:
             row += _vector(own.position, 3) + _vector(own.orientation, 4) + _vector(own.velocity, 3)
             row.append(float(own.yaw_rate))
@@ -345,9 +353,10 @@ class Recorder:
 def read_csv(path: str | os.PathLike) -> tuple[list[str], list[dict]]:
     """(columns, rows) of a recorder CSV, each row {column: value} with the types of `column_kind`.
 
-    A file of an older recorder, whose header lacks only the `LEGACY_MISSING` columns (goal_vel.*,
-    goal_dist), is read too: the returned columns are the current set and those cells are NaN in
-    every row, so callers see one layout. ValueError naming the file when the header is not a
+    A file of an older recorder, whose header lacks only the columns of one `LEGACY_GENERATIONS`
+    entry (teacher_vel.* and fallback; and before them goal_vel.* and goal_dist), is read too: the
+    returned columns are the current set and those cells are NaN (fallback: None) in every row, so
+    callers see one layout. ValueError naming the file when the header is not a
     recorder column set.
     """
     path = Path(path)
@@ -360,8 +369,8 @@ def read_csv(path: str | os.PathLike) -> tuple[list[str], list[dict]]:
         others = [int(m.group(1)) for name in header if (m := re.fullmatch(r"uav(\d+)\.pos\.x", name))]
         n_obstacles = sum(1 for name in header if re.fullmatch(r"obs\d+\.name", name))
         expected = columns(others, n_obstacles)
-        legacy = [name for name in expected if name not in LEGACY_MISSING]
-        if header != expected and header != legacy:
+        layouts = [expected] + [[name for name in expected if name not in missing] for missing in LEGACY_GENERATIONS]
+        if header not in layouts:
             missing = [c for c in expected if c not in header]
             extra = [c for c in header if c not in expected]
             raise ValueError(f"{path}: not a recorder CSV header (missing {missing}, unexpected {extra}"
@@ -376,7 +385,8 @@ def read_csv(path: str | os.PathLike) -> tuple[list[str], list[dict]]:
             except ValueError as error:
                 raise ValueError(f"{path}:{line}: {error}") from None
     if header != expected:  # a legacy file: the missing columns are unknown, in their place
-        rows = [{name: row.get(name, NAN) for name in expected} for row in rows]
+        unknown = {name: None if column_kind(name) == "flag?" else NAN for name in expected}
+        rows = [{name: row.get(name, unknown[name]) for name in expected} for row in rows]
     return expected, rows
 
 
@@ -461,5 +471,5 @@ def _parse(cell: str, kind: str):
     return float(cell)
 
 
-__all__ = ["DEFAULT_OBSTACLES", "GOAL_TARGET", "LEGACY_MISSING", "HeardStamps", "Recorder", "RowStream", "column_kind",
-           "columns", "depth_path", "heard_stamps", "read_csv", "read_depth"]
+__all__ = ["DEFAULT_OBSTACLES", "GOAL_TARGET", "LEGACY_GENERATIONS", "TEACHER", "HeardStamps", "Recorder", "RowStream",
+           "column_kind", "columns", "depth_path", "heard_stamps", "read_csv", "read_depth"]

@@ -25,7 +25,9 @@ def navigation_msg(index: int, row: dict, role_number: int, heard: Sequence[Hear
                          goal_velocity=Vector3(*(row[f"goal_vel.{a}"] for a in "xyz")),
                          goal_distance=row["goal_dist"],
                          selected_velocity=Vector3(*(row[f"sel_vel.{a}"] for a in "xyz")),
-                         feasible=NavigationStep.FEASIBILITY_UNKNOWN if row["feasible"] is None else row["feasible"])
+                         feasible=NavigationStep.FEASIBILITY_UNKNOWN if row["feasible"] is None else row["feasible"],
+                         teacher_velocity=Vector3(*(row[f"teacher_vel.{a}"] for a in "xyz")),
+                         fallback=NavigationStep.FALLBACK_UNKNOWN if row["fallback"] is None else row["fallback"])
     # rounded to the nanosecond, not truncated as Time.from_sec does: a bag reader compares it
     # with the UAL stamps of the same simulated instant
     msg.header.stamp = _time(round(row["time"] * 1e9))

@@ -11,7 +11,15 @@ magna_msgs/AlgorithmControl service) through `NavigationInterface.control`:
   agent_radius (0.5 m), maxSpeed (2 m/s).
 - "neural_network": the model of the goal's role (`neural`). Parameters: model (the path
   of a TorchScript file; or the request's text_value), neighborDist (6 m: selection and
-  padding of the inputs, `inputs`).
+  padding of the inputs, `inputs`), fallback (0: off, the default; 1: on, see below).
+
+The teacher (DAgger): while a network flies, every command also carries ORCA-3D's answer from the
+same WorldView and goal, with the ORCA-3D parameters as they stand (`Command.teacher_velocity`,
+saturated like any command). The recorder writes it beside the network's, so a flight of the
+network is relabelled by its teacher (mlr's DAgger). With fallback 1 the teacher also takes over a
+step whose network command would collide within ORCA-3D's timeHorizon (`would_collide`: the
+command inside a velocity obstacle of a UAV or obstacle ORCA-3D considers); `Command.fallback` says
+so. The plain network is fallback 0.
 
 ORCA-3D's agent_radius is the radius every UAV has in ORCA when its safety radius is
 smaller: the margin that absorbs the autopilot's lag (`orca`). maxSpeed is kept but changes
@@ -56,7 +64,7 @@ from magna_orca_cpp.model import ALGORITHM_CONTROL_NAMES, Params
 from magna_uav.nai.goal import Goal
 from magna_uav.nai.inputs import DEFAULT_NEIGHBOR_DIST
 from magna_uav.nai.neural import NeuralModel, load_model
-from magna_uav.nai.orca import OrcaNavigator
+from magna_uav.nai.orca import OrcaNavigator, OrcaResult, would_collide
 from magna_uav.nai.simple import DEFAULT_BRAKING_TIME, HEADING_MODES, heading_rate, saturate, simple_velocity
 from magna_uav.world_view import WorldView
 
@@ -98,6 +106,13 @@ def _whole(value) -> int:
     return int(number)
 
 
+def _flag(value) -> int:
+    number = _whole(value)
+    if number not in (0, 1):
+        raise ValueError
+    return number
+
+
 def _path(value) -> str:
     if not isinstance(value, str | Path) or not str(value).strip():
         raise TypeError
@@ -121,6 +136,7 @@ PARAMETERS: dict[str, dict[str, tuple[_Checker, str]]] = {
     "neural_network": {
         "model": (_path, "the path of a TorchScript file (its .json spec beside it)"),
         "neighborDist": (_positive, "a finite positive distance in metres"),
+        "fallback": (_flag, "0 (the network alone) or 1 (the teacher takes over a colliding command)"),
     },
 }
 
@@ -136,6 +152,9 @@ class Command:
     neighbors: tuple[int, ...] = ()  # ids of the UAVs taken into account, nearest first
     obstacles: tuple[str, ...] = ()  # names of the obstacles taken into account, nearest first
     error: str = ""  # why this is a hover command, or ""
+    # ORCA-3D's answer from the same inputs while a network flies (module docstring), else None
+    teacher_velocity: np.ndarray | None = None
+    fallback: bool = False  # the network's command would have collided and the teacher's was sent
 
 
 def canonical_name(name: str) -> str:
@@ -182,7 +201,7 @@ class NavigationInterface:
         self._params: dict[str, dict[str, ParamValue]] = {
             "simple": {"brakingDistance": self.max_speed * DEFAULT_BRAKING_TIME},
             "orca3d": {name: getattr(Params(), field) for name, field in ALGORITHM_CONTROL_NAMES.items()},
-            "neural_network": {"model": "", "neighborDist": DEFAULT_NEIGHBOR_DIST},
+            "neural_network": {"model": "", "neighborDist": DEFAULT_NEIGHBOR_DIST, "fallback": 0},
         }
         self._models: dict[str, NeuralModel] = {}  # by role
         self._last_error = ""
@@ -328,6 +347,8 @@ class NavigationInterface:
             return Command(np.zeros(3), 0.0, self._algorithm, feasible=False, error=message)
         self._last_error = ""
         command.velocity = saturate(command.velocity, self.max_speed)  # the direction, hence the yaw rate, stays
+        if command.teacher_velocity is not None:
+            command.teacher_velocity = saturate(command.teacher_velocity, self.max_speed)
         return command
 
     def _preferred(self, view: WorldView, goal: Goal) -> np.ndarray:
@@ -346,11 +367,7 @@ class NavigationInterface:
             velocity = self._preferred(view, goal)
             return Command(velocity, self._yaw_rate(view, goal, velocity), "simple")
         if algorithm == "orca3d":
-            params = self.orca_params()
-            n_obstacles = self.params("orca3d")[ORCA_OBSTACLES]
-            assert isinstance(n_obstacles, int)  # from _whole, or N_neighbors_aware's default, which is an int too
-            result = self._orca.velocity(view, self._preferred(view, goal), params, n_obstacles,
-                                         self.safety_radius, self.max_speed)
+            result = self._orca_result(view, goal)
             velocity = result.velocity
             return Command(velocity, self._yaw_rate(view, goal, velocity), "orca3d", result.feasible,
                            result.neighbors.ids, result.neighbors.obstacle_names)
@@ -360,8 +377,26 @@ class NavigationInterface:
             raise LookupError(f"neural_network has no model for role {goal.role!r} (loaded: {loaded}); load one "
                               "with algorithm_control configure neural_network and the model path")
         velocity, neighbors = model.velocity(view, goal, self._number_param("neural_network", "neighborDist"))
+        teacher = self._orca_result(view, goal)
+        fallback = bool(self._params["neural_network"]["fallback"]) and self._collides(view, goal, velocity, teacher)
+        if fallback:
+            velocity = teacher.velocity
         return Command(velocity, self._yaw_rate(view, goal, velocity), "neural_network", True, neighbors.ids,
-                       neighbors.obstacle_names)
+                       neighbors.obstacle_names, teacher_velocity=teacher.velocity.copy(), fallback=fallback)
+
+    def _orca_result(self, view: WorldView, goal: Goal) -> OrcaResult:
+        """ORCA-3D's step with its parameters as they stand: what it flies, or the teacher's answer."""
+        n_obstacles = self.params("orca3d")[ORCA_OBSTACLES]
+        assert isinstance(n_obstacles, int)  # from _whole, or N_neighbors_aware's default, which is an int too
+        return self._orca.velocity(view, self._preferred(view, goal), self.orca_params(), n_obstacles,
+                                   self.safety_radius, self.max_speed)
+
+    def _collides(self, view: WorldView, goal: Goal, velocity: np.ndarray, teacher: OrcaResult) -> bool:
+        """Would `velocity` (saturated as it would be sent) collide within ORCA-3D's horizon with what the
+        teacher avoided?"""
+        params = self.orca_params()
+        return would_collide(view, saturate(velocity, self.max_speed), teacher.neighbors, self.safety_radius,
+                             params.agent_radius, params.time_horizon)
 
 
 __all__ = ["ACTIONS", "ALGORITHMS", "Command", "NavigationInterface", "PARAMETERS", "canonical_name"]

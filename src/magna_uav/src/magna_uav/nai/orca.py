@@ -89,6 +89,29 @@ def orca_agents(view: WorldView, preferred: np.ndarray, neighbors: Neighbors, ra
     return me, others
 
 
+def would_collide(view: WorldView, velocity: np.ndarray, neighbors: Neighbors, radius: float, agent_radius: float,
+                  horizon: float) -> bool:
+    """Would the own UAV, flying `velocity` while the others keep theirs, touch one of `neighbors` within `horizon`
+    seconds? The spheres are ORCA-3D's (`orca_agents`), so this is the command lying in one of ORCA-3D's velocity
+    obstacles. Spheres that overlap already count only while the command brings them closer."""
+    me, others = orca_agents(view, np.zeros(3), neighbors, radius, 0.0, agent_radius)
+    velocity = np.asarray(velocity, dtype=float).reshape(3)
+    for other in others:
+        offset = np.asarray(other.position, dtype=float) - me.position
+        closing = velocity - np.asarray(other.velocity, dtype=float)
+        reach = me.radius + other.radius
+        if float(offset @ offset) < reach * reach:
+            if float(closing @ offset) > 0.0:
+                return True
+            continue
+        speed2 = float(closing @ closing)
+        t = 0.0 if speed2 == 0.0 else min(max(float(offset @ closing) / speed2, 0.0), horizon)
+        miss = offset - closing * t
+        if float(miss @ miss) < reach * reach:
+            return True
+    return False
+
+
 @dataclass
 class OrcaResult:
     velocity: np.ndarray
