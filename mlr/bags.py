@@ -4,9 +4,10 @@ The ground station bags (magna_gs `bag_recorder.mission_topics`) what a UAV mana
 step, so the steps can be rebuilt where no CSV exists (a real flight's bag, a lost file):
 
 - `/magna/uav_{id}/navigation` (magna_msgs/NavigationStep): one message per recorded step, with
-  that CSV row's time (the stamp), role, algorithm, goal, goal_vel, goal_dist and sel_vel, and
-  its row index. One step per row index, in row order: a repeat (the manager replays its steps
-  to a late subscriber, see magna_uav's README) is dropped. So the steps are the CSV's rows,
+  that CSV row's time (the stamp), role, algorithm, goal, goal_vel, goal_dist, sel_vel and
+  teacher_vel (NaN in bags made before steps carried it), and its row index. One step per row
+  index, in row order: a repeat (the manager replays its steps to a late subscriber, see
+  magna_uav's README) is dropped. So the steps are the CSV's rows,
   except rows whose message the bag missed (none, normally).
 - own and other UAVs' position and velocity: the very `/uav_{id}/ual/pose` and
   `/uav_{id}/ual/velocity` messages the manager used, which each step names by their stamps
@@ -212,6 +213,8 @@ def _uav_steps(bag: Path, uav: int, max_speed: float, messages: list, poses, vel
         goal_vel=np.array([_xyz(m.goal_velocity) for m in msgs], dtype=float).reshape(n, 3),
         goal_dist=np.array([m.goal_distance for m in msgs], dtype=float),
         sel_vel=np.array([_xyz(m.selected_velocity) for m in msgs], dtype=float).reshape(n, 3),
+        teacher_vel=np.array([_xyz(m.teacher_velocity) if hasattr(m, "teacher_velocity") else (math.nan,) * 3
+                              for m in msgs], dtype=float).reshape(n, 3),
         # the last message of a role: the row where the recorder writes the role's outcome
         role_end=np.append(numbers[1:] != numbers[:-1], True) if n else np.zeros(0, dtype=bool),
         others=others,

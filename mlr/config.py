@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any, Literal, NoReturn, get_args
 
 from magna_common.storage_tree import StorageError, check_component
-from mlr.pickler import SOURCES, Selection, Source, Teacher
+from mlr.pickler import LABELS, SOURCES, Label, Selection, Source, Teacher
 
 # The words a config may give for each key with a fixed set of values; the files and RunConfig hold the words.
 Role = Literal["path", "agent_ad", "agent_ap"]  # the roles the NAI has inputs for (magna_uav.nai.inputs)
@@ -35,7 +35,8 @@ Augmentation = Literal["none", "yaw"]
 ALGORITHM_ALIASES = {"orca3": "orca3d"}
 # key -> the words it takes, in the order error messages list them
 CHOICES: dict[str, tuple[str, ...]] = {
-    "source": SOURCES, "role": get_args(Role), "algorithm": get_args(Algorithm), "model": get_args(Model),
+    "source": SOURCES, "label": LABELS, "role": get_args(Role), "algorithm": get_args(Algorithm),
+    "model": get_args(Model),
     "optimizer": get_args(Optimizer), "activation": get_args(Activation), "padding": get_args(Padding),
     "pooling": get_args(Pooling), "lr_schedule": get_args(Schedule), "loss": get_args(Loss),
     "augment": get_args(Augmentation)}
@@ -67,6 +68,7 @@ class RunConfig:
     n_obstacles: int = 0
     neighbor_dist: float = 6.0
     fvi: int = 0
+    label: Label = "chosen"  # teacher: ORCA-3D's answer recorded while a network flew (DAgger's relabelled steps)
     # preprocessing
     split: tuple[float, float, float] = (0.7, 0.2, 0.1)
     seed: int = 0
@@ -99,7 +101,7 @@ class RunConfig:
     @property
     def teacher(self) -> Teacher:
         return Teacher(self.role, self.algorithm, self.n_neighbors, self.n_obstacles, self.neighbor_dist, self.fvi,
-                       (self.image_size[0], self.image_size[1]) if self.model == "cnn" else None)
+                       (self.image_size[0], self.image_size[1]) if self.model == "cnn" else None, self.label)
 
     def as_dict(self) -> dict:
         return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}

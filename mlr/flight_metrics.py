@@ -8,13 +8,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from magna_common.files import write_atomically, write_text_atomically
-from magna_common.records import INTERRUPTED, NOT_RUN_TO_AN_OUTCOME, RecordError, SimulationResult, SummaryRow
+from magna_common.records import NOT_FLOWN, RecordError, SimulationResult, SummaryRow
 from magna_common.storage_tree import RESULT_FILE, SUMMARY_FILE, simulation_dir
 from mlr.nn_mission import FlyError
 
 TARGET_RATIO = 0.95  # the project's target: missions flown by the network collision-free at >= 95% of ORCA's rate
-# Simulations that did not run to a mission outcome say nothing about the algorithm: left out.
-NOT_FLOWN = (INTERRUPTED, *NOT_RUN_TO_AN_OUTCOME)
 TIME_TO_GOAL = ("per UAV and simulation: the time of the UAV's last `path` control step minus its first, "
                 "counted when every path role it flew ended 'succeeded' (the recorder's outcome column)")
 

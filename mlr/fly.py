@@ -9,8 +9,9 @@ Steps (see mlr/README.md, "Flying a trained network"):
    load them, the world and mission are found and valid, the mission sets ORCA-3D (orca3/orca3d)
    with an algorithm_control state, and no dataset would be mixed up with older data;
 2. the network variant of the mission (`nn_variant`): every algorithm_control state that sets
-   ORCA-3D sets neural_network with the model instead; written to
-   OUT/missions/MISSION/SUBMISSION_nn.json, so `magna run --search-path OUT` finds it;
+   ORCA-3D is followed by one that sets neural_network with the model (the ORCA state becomes a
+   configure: the teacher's parameters); written to OUT/missions/MISSION/SUBMISSION_nn.json, so
+   `magna run --search-path OUT` finds it;
 3. two batches through the real `magna run`: the mission as it is under the name NAME_orca, the
    variant under NAME_nn, with the same --seed so simulation m of both flies the same random
    waypoints (seed S+m);
@@ -79,6 +80,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=0, metavar="S",
                         help="base seed of both batches; simulation M uses S+M (default: 0)")
     parser.add_argument("--no-bag", action="store_true", help="do not record a bag per simulation")
+    parser.add_argument("--fallback", action="store_true",
+                        help="the network flies with the NAI's safety fallback: ORCA-3D, the teacher, takes over a "
+                             "step whose network command would collide within its time horizon (report such "
+                             "flights apart from the network's own)")
     policy = parser.add_mutually_exclusive_group()
     policy.add_argument("--append", dest="policy", action="store_const", const="append",
                         help="add the simulations to existing datasets (passed on to magna run)")
@@ -144,7 +149,8 @@ def prepare(args) -> FlyPlan:
         raw = json.loads(inputs.mission_file.read_text())
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
         raise FlyError(f"{inputs.mission_file}: cannot read it as JSON: {err}") from None
-    variant, changes = nn_variant(raw, str(model), neighbor_dist, inputs.mission_file)
+    variant, changes = nn_variant(raw, str(model), neighbor_dist, inputs.mission_file,
+                                  fallback=getattr(args, "fallback", False))
     missing = [role for role in mission_roles(raw) if role != loaded.role]
     if missing:
         print(f"fly: warning: the model flies role {loaded.role!r}; the mission's {', '.join(missing)} role(s) will "

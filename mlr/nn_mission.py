@@ -36,22 +36,50 @@ class Change:
     was: str  # e.g. "orca3 set"
     neighbor_dist: float
     neighbor_dist_from: str  # "the model's spec", "the mission's ORCA neighborDist" or "the default"
+    network_state: str = ""  # the state added after it that sets the network; "" when replaced in place
 
     def __str__(self) -> str:
-        return (f"{self.where} {self.state!r}: {self.was} -> {NN_NAME} set, neighborDist {self.neighbor_dist:g} "
-                f"({self.neighbor_dist_from})")
+        then = f"{NN_NAME} set, neighborDist {self.neighbor_dist:g} ({self.neighbor_dist_from})"
+        if self.network_state:
+            return (f"{self.where} {self.state!r}: {self.was} -> {self.was.split()[0]} configure (the teacher's "
+                    f"parameters), then {self.network_state!r}: {then}")
+        return f"{self.where} {self.state!r}: {self.was} -> {then} (the teacher keeps ORCA-3D's defaults)"
 
 
-def _walk_states(nodes, prefix: str):
-    """(JSON path, state) of every state of a State_Machine list, children (occurrencies) after their parent."""
+def _walk_states(nodes, prefix: str, container: str = "StateMachine"):
+    """(JSON path, state, its sibling list, the kind of container holding them) of every state of a State_Machine
+    list, children (occurrencies) after their parent."""
     for i, node in enumerate(nodes):
         where = f"{prefix}[{i}]"
         if not isinstance(node, dict):
             continue
-        yield where, node
+        yield where, node, nodes, container
         children = node.get("occurrencies")
         if isinstance(children, list):
-            yield from _walk_states(children, f"{where}.occurrencies")
+            yield from _walk_states(children, f"{where}.occurrencies", str(node.get("type", "")))
+
+
+def _unique_name(siblings: list, wanted: str) -> str:
+    taken = {node.get("name") for node in siblings if isinstance(node, dict)}
+    name, k = wanted, 2
+    while name in taken:
+        name, k = f"{wanted}_{k}", k + 1
+    return name
+
+
+def _network_after(node: dict, siblings: list, parameters: dict) -> str:
+    """Turn the ORCA-3D set state `node` into a configure (so the teacher keeps the mission's ORCA-3D parameters)
+    and add after it a state that sets the network and goes on where `node` went; the new state's name."""
+    name = _unique_name(siblings, f"{node.get('name', 'algorithm_control')}{VARIANT_SUFFIX}")
+    network = {key: copy.deepcopy(value) for key, value in node.items() if key not in ("name", "parameters")}
+    network["name"] = name
+    network["parameters"] = parameters
+    outcomes = node.get("outcomes")
+    if isinstance(outcomes, dict) and "completed" in outcomes:
+        node["outcomes"] = {**outcomes, "completed": name}
+    node["parameters"] = {**node["parameters"], "action": "configure"}
+    siblings.insert(next(i for i, sibling in enumerate(siblings) if sibling is node) + 1, network)
+    return name
 
 
 def _control(node: dict) -> dict | None:
@@ -75,14 +103,19 @@ def _given_neighbor_dist(parameters: dict) -> float | None:
 
 
 def nn_variant(mission, model_path: str, neighbor_dist: float | None = None,
-               source: str | os.PathLike = "mission") -> tuple[dict, list[Change]]:
+               source: str | os.PathLike = "mission", fallback: bool = False) -> tuple[dict, list[Change]]:
     """(a copy of `mission` flying the network, what changed); FlyError naming `source` if nothing sets ORCA.
 
     Every algorithm_control state, at any depth, whose parameters name orca3/orca3d with action
-    set becomes neural_network set with the model and neighborDist: `neighbor_dist` (the spec's,
-    when given), else that state's ORCA neighborDist, else the first neighborDist any ORCA state
-    of the mission gives, else DEFAULT_NEIGHBOR_DIST. ORCA "configure" states stay: ORCA-3D still
+    set is followed by neural_network set with the model and neighborDist: `neighbor_dist` (the
+    spec's, when given), else that state's ORCA neighborDist, else the first neighborDist any ORCA
+    state of the mission gives, else DEFAULT_NEIGHBOR_DIST. The ORCA state itself becomes a
+    configure, so ORCA-3D, the teacher whose answer the NAI records beside the network's (DAgger),
+    keeps the mission's parameters; its "completed" outcome leads to the new state, which goes on
+    where it went. In a Concurrence, where states run side by side, the state is replaced in place
+    instead (the teacher then has ORCA-3D's defaults). ORCA "configure" states stay: ORCA-3D still
     flies the roles no network is trained for (basic_move). `mission` is not modified.
+    `fallback` adds the NAI's fallback parameter (1): the teacher takes over a colliding command.
 
     The model path goes in text_value (a string field of the AlgorithmControl service); the
     ground station sends `values` as float64 and so cannot carry a path there.
@@ -94,11 +127,12 @@ def nn_variant(mission, model_path: str, neighbor_dist: float | None = None,
                        "State_Machine list of states")
     variant = copy.deepcopy(mission)
     states = list(_walk_states(variant["State_Machine"], "State_Machine"))
-    controls = [(where, node, p) for where, node in states if (p := _control(node)) is not None]
-    orca = [(where, node, p) for where, node, p in controls if p.get("name") in ORCA_NAMES]
-    mission_dist = next((d for _, _, p in orca if (d := _given_neighbor_dist(p)) is not None), None)
+    controls = [(where, node, p, siblings, container) for where, node, siblings, container in states
+                if (p := _control(node)) is not None]
+    orca = [control for control in controls if control[2].get("name") in ORCA_NAMES]
+    mission_dist = next((d for _, _, p, _, _ in orca if (d := _given_neighbor_dist(p)) is not None), None)
     changes = []
-    for where, node, parameters in orca:
+    for where, node, parameters, siblings, container in orca:
         if parameters.get("action") != "set":
             continue
         if neighbor_dist is not None:
@@ -109,11 +143,18 @@ def nn_variant(mission, model_path: str, neighbor_dist: float | None = None,
             dist, origin = mission_dist, "the mission's ORCA neighborDist"
         else:
             dist, origin = DEFAULT_NEIGHBOR_DIST, "the default"
-        changes.append(Change(where, str(node.get("name", "")), f"{parameters['name']} set", dist, origin))
-        node["parameters"] = {"name": NN_NAME, "action": "set", "params": ["neighborDist"], "values": [dist],
-                              "text_value": model_path}
+        network = {"name": NN_NAME, "action": "set", "params": ["neighborDist"], "values": [dist],
+                   "text_value": model_path}
+        if fallback:
+            network["params"], network["values"] = ["neighborDist", "fallback"], [dist, 1]
+        added = ""
+        if container == "Concurrence":
+            node["parameters"] = network
+        else:
+            added = _network_after(node, siblings, network)
+        changes.append(Change(where, str(node.get("name", "")), f"{parameters['name']} set", dist, origin, added))
     if not changes:
-        found = ", ".join(f"{p.get('name')} {p.get('action')} at {where}" for where, _, p in controls)
+        found = ", ".join(f"{p.get('name')} {p.get('action')} at {where}" for where, _, p, _, _ in controls)
         raise FlyError(f"{source}: no algorithm_control state sets orca3 or orca3d "
                        f"({'found: ' + found if found else 'it has no algorithm_control state'}); fly compares the "
                        "network with ORCA-3D, so give a mission that flies ORCA-3D")
@@ -124,7 +165,7 @@ def mission_roles(mission) -> list[str]:
     """The network roles (path, agent_ad, agent_ap) the mission's action states fly, in first-seen order."""
     roles: list[str] = []
     machine = mission.get("State_Machine") if isinstance(mission, dict) else None
-    for _, node in _walk_states(machine if isinstance(machine, list) else [], "State_Machine"):
+    for _, node, _, _ in _walk_states(machine if isinstance(machine, list) else [], "State_Machine"):
         role = STATE_ROLES.get(node.get("state_type"))
         if role is not None and role not in roles:
             roles.append(role)

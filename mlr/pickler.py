@@ -10,7 +10,9 @@ A sample is one control step of a UAV flying the teacher role with the teacher a
   with), from the step's own velocity, goal, neighbours and obstacles;
 - label: the velocity the teacher chose `fvi` steps later (FVI, future velocity instant;
   0 = this step's choice), taken only within the same run of the role (a label never comes
-  from the next role or the next goal sequence).
+  from the next role or the next goal sequence). With `label="teacher"` (DAgger) the steps are
+  those a network flew (`algorithm` neural_network) and the label is the answer ORCA-3D gave
+  from the same inputs at that step (the recorder's teacher_vel), not what the network chose.
 
 Neighbours are chosen as the NAI chooses them (`select_neighbors`): the `n_neighbors` UAVs
 and `n_obstacles` obstacles whose gap is below `neighbor_dist`, nearest first (UAV ties by
@@ -28,7 +30,7 @@ from typing import Literal, get_args
 import numpy as np
 
 from magna_common.airframes import AirframeError, load_airframe
-from magna_common.records import RecordError, SimulationResult
+from magna_common.records import NOT_FLOWN, RecordError, SimulationResult
 from magna_common.storage_tree import MISSION_FILE, RESULT_FILE, WORLD_FILE, StorageKey
 from magna_uav.nai.inputs import ROLE_BLOCKS, assemble_inputs, input_names
 from magna_uav.nai.neural import prepare_depth
@@ -38,6 +40,8 @@ from mlr.steps import PicklerError, UavSteps
 XYZ = ("x", "y", "z")
 Source = Literal["csv", "bag"]  # the recorder CSVs, or simulation.bag (mlr.bags)
 SOURCES: tuple[str, ...] = get_args(Source)
+Label = Literal["chosen", "teacher"]  # what the algorithm flown chose (sel_vel), or the teacher's answer (teacher_vel)
+LABELS: tuple[str, ...] = get_args(Label)
 
 
 @dataclass(frozen=True)
@@ -75,6 +79,7 @@ class Teacher:
     neighbor_dist: float = 6.0
     fvi: int = 0
     image: tuple[int, int] | None = None  # (height, width) of the depth image for CNN models, or None
+    label: Label = "chosen"
 
     def __post_init__(self):
         if self.role not in ROLE_BLOCKS:
@@ -83,6 +88,9 @@ class Teacher:
         if isinstance(self.fvi, bool) or not isinstance(self.fvi, int) or self.fvi < 0:
             raise PicklerError(f"fvi is {self.fvi!r}: give a whole number of control steps >= 0")
         input_names(self.role, self.n_neighbors, self.n_obstacles)  # checks the counts
+        if self.label not in LABELS:
+            raise PicklerError(f"label is {self.label!r}: give chosen (what the flown algorithm chose) or teacher "
+                               "(ORCA-3D's answer recorded while a network flew)")
 
 
 @dataclass
@@ -128,8 +136,12 @@ class Simulation:
     uav_models: dict[int, str]  # UAV id -> airframe model, from the simulation's mission.json
 
 
-def find_simulations(selection: Selection) -> tuple[list[Simulation], list[str]]:
-    """(usable simulations, why each other one was left out), in dataset and simulation order."""
+def find_simulations(selection: Selection, failures: bool = False) -> tuple[list[Simulation], list[str]]:
+    """(usable simulations, why each other one was left out), in dataset and simulation order.
+
+    A teacher's demonstrations come from its successful simulations only. With `failures` a
+    simulation that ran to any mission outcome is kept too (DAgger: a network's collisions are
+    exactly the states the teacher must relabel); interrupted or crashed ones never are."""
     kept, skipped = [], []
     for dataset in selection.dataset_dirs():
         if not dataset.is_dir():
@@ -140,7 +152,7 @@ def find_simulations(selection: Selection) -> tuple[list[Simulation], list[str]]
         sims = sorted((p for p in dataset.glob("simulation_*") if p.name.split("_")[-1].isdigit()),
                       key=lambda p: int(p.name.split("_")[-1]))
         for sim in sims:
-            reason = _unusable(sim)
+            reason = _unusable(sim, failures)
             if reason:
                 skipped.append(f"{sim}: {reason}")
             else:
@@ -148,7 +160,7 @@ def find_simulations(selection: Selection) -> tuple[list[Simulation], list[str]]
     return kept, skipped
 
 
-def _unusable(sim: Path) -> str:
+def _unusable(sim: Path, failures: bool = False) -> str:
     if not (sim / WORLD_FILE).is_file():
         return f"no {WORLD_FILE} (the resolved world)"
     result_path = sim / RESULT_FILE
@@ -158,7 +170,7 @@ def _unusable(sim: Path) -> str:
         result = SimulationResult.read(result_path)
     except RecordError as err:
         return f"{RESULT_FILE} unreadable ({err})"
-    if not result.success:
+    if not result.success and not (failures and result.termination not in NOT_FLOWN):
         return f"not a success ({result.outcome or '?'}: {result.message})"
     if not (sim / MISSION_FILE).is_file():
         return f"no {MISSION_FILE} (the UAV models come from it)"
@@ -226,6 +238,7 @@ def steps_from_csv(csv_path: str | Path, max_speed: float) -> UavSteps:
         goal_vel=_block(rows, "goal_vel", optional=True),
         goal_dist=np.array([row.get("goal_dist", math.nan) for row in rows], dtype=float),
         sel_vel=_block(rows, "sel_vel"),
+        teacher_vel=_block(rows, "teacher_vel"),
         role_end=np.array([bool(row["outcome"]) for row in rows], dtype=bool),
         others={j: (_block(rows, f"uav{j}.pos"), _block(rows, f"uav{j}.vel"),
                     np.array([row[f"uav{j}.gap"] for row in rows], dtype=float)) for j in others},
@@ -286,9 +299,10 @@ def samples(steps: UavSteps, teacher: Teacher) -> Samples:
                            f"n_obstacles is {teacher.n_obstacles}: give at most {steps.obstacle_gap.shape[1]}")
     xs, ys, rows, images = [], [], [], []
     d = len(input_names(teacher.role, teacher.n_neighbors, teacher.n_obstacles))
+    labels = steps.teacher_vel if teacher.label == "teacher" else steps.sel_vel
     for start, stop in runs(steps, teacher.role, teacher.algorithm):
         for i in range(start, stop - teacher.fvi):
-            label = steps.sel_vel[i + teacher.fvi]
+            label = labels[i + teacher.fvi]
             if not (np.all(np.isfinite(label)) and np.all(np.isfinite(steps.position[i]))
                     and np.all(np.isfinite(steps.velocity[i])) and np.all(np.isfinite(steps.goal[i]))):
                 continue

@@ -34,12 +34,18 @@ class UavSteps:
     goal_dist: np.ndarray  # (n,) the distance kept from the target (agent_ad), NaN otherwise
     sel_vel: np.ndarray  # (n, 3) the velocity the navigation algorithm chose: the teacher's label
     role_end: np.ndarray  # (n,) bool: the role's last step (its outcome was written there)
+    # (n, 3) ORCA-3D's answer from the same inputs while a network flew (DAgger's label), NaN otherwise
+    teacher_vel: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     # other UAV id -> (position (n, 3), velocity (n, 3), gap between safety spheres (n,))
     others: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = field(default_factory=dict)
     obstacle_pos: np.ndarray | None = None  # (n, K, 3) the K nearest obstacles' centres, nearest first
     obstacle_gap: np.ndarray | None = None  # (n, K) their gaps (NaN where fewer than K obstacles)
     depth_frames: np.ndarray | None = None  # (f, H, W) depth images in metres, if the camera was on
     depth_rows: np.ndarray | None = None  # (f,) the step each frame arrived at
+
+    def __post_init__(self) -> None:
+        if len(self.teacher_vel) != len(self.time):  # a source without the teacher's answer: unknown
+            self.teacher_vel = np.full((len(self.time), 3), np.nan)
 
     def __len__(self) -> int:
         return len(self.time)

@@ -80,14 +80,21 @@ def test_4_cylinders_corpus_mission_flies_the_network_where_it_set_orca(tmp_path
     variant, changes = nn_mission.nn_variant(original, MODEL, source=FOUR_CYLINDERS)
 
     assert original == read(FOUR_CYLINDERS), "the mission given is not modified"
-    assert [(c.where, c.state, c.was) for c in changes] == [("State_Machine[3]", "algorithm_control", "orca3 set")]
+    assert [(c.where, c.state, c.was, c.network_state) for c in changes] == \
+        [("State_Machine[3]", "algorithm_control", "orca3 set", "algorithm_control_nn")]
     # the state gives only N_neighbors_aware: the NAI's default distance
     assert changes[0].neighbor_dist == 6.0 and changes[0].neighbor_dist_from == "the default"
-    state = variant["State_Machine"][3]
-    assert state["parameters"] == nn_parameters(MODEL, 6.0)
-    assert {k: v for k, v in state.items() if k != "parameters"} == \
-        {k: v for k, v in original["State_Machine"][3].items() if k != "parameters"}  # ids, outcomes kept
-    state["parameters"] = original["State_Machine"][3]["parameters"]
+    teacher, network = variant["State_Machine"][3:5]
+    was = original["State_Machine"][3]
+    # the ORCA state keeps its parameters for the teacher, as a configure, and leads to the network's state
+    assert teacher["parameters"] == {**was["parameters"], "action": "configure"}
+    assert teacher["outcomes"] == {**was["outcomes"], "completed": "algorithm_control_nn"}
+    assert network["parameters"] == nn_parameters(MODEL, 6.0)
+    assert network["name"] == "algorithm_control_nn" and network["outcomes"] == was["outcomes"]
+    assert {k: v for k, v in network.items() if k not in ("name", "parameters")} == \
+        {k: v for k, v in was.items() if k not in ("name", "parameters")}  # ids, outcomes kept
+    del variant["State_Machine"][4]
+    variant["State_Machine"][3] = was
     assert variant == original, "nothing else changes"
 
 
@@ -96,12 +103,16 @@ def test_central_cylinder_corpus_mission_keeps_its_distance_unless_the_spec_give
     variant, changes = nn_mission.nn_variant(original, MODEL, source=CENTRAL_CYLINDER)
     assert [c.where for c in changes] == ["State_Machine[5]"]
     assert (changes[0].neighbor_dist, changes[0].neighbor_dist_from) == (6.0, "the mission's ORCA neighborDist")
-    assert variant["State_Machine"][5]["parameters"] == nn_parameters(MODEL, 6.0)
+    assert variant["State_Machine"][6]["parameters"] == nn_parameters(MODEL, 6.0)
 
-    from_spec, changes = nn_mission.nn_variant(original, MODEL, neighbor_dist=4.5, source=CENTRAL_CYLINDER)
+    from_spec, changes = nn_mission.nn_variant(original, MODEL, neighbor_dist=4.5, source=CENTRAL_CYLINDER,
+                                               fallback=True)
     assert (changes[0].neighbor_dist, changes[0].neighbor_dist_from) == (4.5, "the model's spec")
-    assert from_spec["State_Machine"][5]["parameters"] == nn_parameters(MODEL, 4.5)
-    assert "State_Machine[5] 'algorithm_control': orca3 set -> neural_network set, neighborDist 4.5" in str(changes[0])
+    assert from_spec["State_Machine"][6]["parameters"] == {**nn_parameters(MODEL, 4.5),
+                                                           "params": ["neighborDist", "fallback"], "values": [4.5, 1]}
+    assert str(changes[0]) == ("State_Machine[5] 'algorithm_control': orca3 set -> orca3 configure (the teacher's "
+                               "parameters), then 'algorithm_control_nn': neural_network set, neighborDist 4.5 "
+                               "(the model's spec)")
 
 
 def test_the_variant_is_a_mission_the_ground_station_accepts(tmp_path):
@@ -112,36 +123,47 @@ def test_the_variant_is_a_mission_the_ground_station_accepts(tmp_path):
     path = nn_mission.write_variant(tmp_path, "Gym", "2UAVs_Crossing_ORCA", variant)
     assert path == tmp_path / "missions" / "Gym" / "2UAVs_Crossing_ORCA_nn.json"
     loaded = load_mission(path)  # MissionError on anything the ground station would refuse
-    controls = [n.parameters for n in loaded.mission.nodes() if getattr(n.parameters, "name", "") == "neural_network"]
-    assert [(c.action, c.params, c.values, c.text_value) for c in controls] == [("set", ("neighborDist",), (8.0,),
-                                                                                   MODEL)]
+    controls = [(n.parameters.name, n.parameters.action) for n in loaded.mission.nodes()
+                if getattr(n.parameters, "name", "") in ("neural_network", "orca3", "orca3d")]
+    assert controls == [("orca3d", "configure"), ("neural_network", "set")]
+    network = [n.parameters for n in loaded.mission.nodes() if getattr(n.parameters, "name", "") == "neural_network"]
+    assert [(c.action, c.params, c.values, c.text_value) for c in network] == [("set", ("neighborDist",), (8.0,),
+                                                                                  MODEL)]
 
 
-def test_states_at_any_depth_are_replaced_and_orca_configure_stays():
+def test_states_at_any_depth_are_followed_by_the_network_and_orca_configure_stays():
     configure = {"type": "CBState", "state_type": "algorithm_control", "name": "tune",
                  "parameters": {"name": "orca3d", "action": "configure", "params": ["neighborDist"], "values": [5.0]}}
     nested_set = {"type": "CBState", "state_type": "algorithm_control", "name": "deep",
-                  "parameters": {"name": "orca3d", "action": "set"}}
+                  "parameters": {"name": "orca3d", "action": "set"}, "outcomes": {"completed": "next"}}
+    inner = {"type": "CBState", "state_type": "algorithm_control", "name": "inner",
+             "parameters": {"name": "orca3", "action": "set", "params": ["N_neighbors_aware"], "values": [2]}}
     mission = {"Agents_Config": [], "State_Machine": [
         configure,
         {"type": "Concurrence", "name": "c", "occurrencies": [
-            {"type": "CBState", "state_type": "algorithm_control", "name": "inner",
-             "parameters": {"name": "orca3", "action": "set", "params": ["N_neighbors_aware"], "values": [2]}},
-            {"type": "Sequence", "name": "s", "occurrencies": [nested_set]},
+            inner,
+            {"type": "StateMachine", "name": "s", "occurrencies": [
+                nested_set, {"type": "CBState", "state_type": "wait", "name": "next"},
+                {"type": "CBState", "state_type": "wait", "name": "deep_nn"}]},
         ]},
         {"type": "CBState", "state_type": "algorithm_control", "name": "plain",
          "parameters": {"name": "simple", "action": "set"}},
     ]}
     variant, changes = nn_mission.nn_variant(mission, MODEL)
-    assert [(c.where, c.state) for c in changes] == [("State_Machine[1].occurrencies[0]", "inner"),
-                                                      ("State_Machine[1].occurrencies[1].occurrencies[0]", "deep")]
+    assert [(c.where, c.state, c.network_state) for c in changes] == [
+        ("State_Machine[1].occurrencies[0]", "inner", ""),  # side by side in a Concurrence: replaced in place
+        ("State_Machine[1].occurrencies[1].occurrencies[0]", "deep", "deep_nn_2")]  # a name not taken
+    assert "the teacher keeps ORCA-3D's defaults" in str(changes[0])
     # neither gives a distance: the one the mission's ORCA configure state gives
     assert {(c.neighbor_dist, c.neighbor_dist_from) for c in changes} == {(5.0, "the mission's ORCA neighborDist")}
     machine = variant["State_Machine"]
     assert machine[0] == configure and machine[2] == mission["State_Machine"][2]
     assert machine[1]["occurrencies"][0]["parameters"] == nn_parameters(MODEL, 5.0)
-    assert machine[1]["occurrencies"][1]["occurrencies"][0]["parameters"] == nn_parameters(MODEL, 5.0)
-    assert nested_set["parameters"] == {"name": "orca3d", "action": "set"}
+    deep, network = machine[1]["occurrencies"][1]["occurrencies"][:2]
+    assert deep["parameters"] == {"name": "orca3d", "action": "configure"}
+    assert deep["outcomes"] == {"completed": "deep_nn_2"} and network["outcomes"] == {"completed": "next"}
+    assert network["parameters"] == nn_parameters(MODEL, 5.0)
+    assert nested_set["parameters"] == {"name": "orca3d", "action": "set"} and len(mission["State_Machine"]) == 3
 
 
 @pytest.mark.parametrize("mission", [SIMPLE_MISSION, CORPUS / "Missions" / "Gym" / "only_world.json"],
@@ -181,7 +203,8 @@ def write_uav_csv(path: Path, uav_id: int, other: int, flight: list[tuple[float,
     """A recorder CSV by hand: one row per (time, role, outcome); every other column unknown."""
     header = columns([other], n_obstacles=0)
     blank = {name: "nan" for name in header}
-    blank.update({"uav_id": str(uav_id), "algorithm": "orca3d", "collided_with": "", "feasible": "", "outcome": "",
+    blank.update({"uav_id": str(uav_id), "algorithm": "orca3d", "collided_with": "", "feasible": "", "fallback": "",
+                  "outcome": "",
                   "collision": "0", "out_of_bounds": "0", "low_battery": "0", "ual_state": "4"})
     lines = [",".join(header)]
     for t, role, outcome in flight:
@@ -365,7 +388,7 @@ def test_both_batches_get_the_same_seeds_and_the_network_mission(tmp_path):
     assert option(nn, "--mission") == [MISSION + "_nn"] and option(nn, "--name") == ["t_nn"]
     assert option(nn, "--search-path") == [out, str(CORPUS.resolve())]
     variant = read(tmp_path / "out" / "missions" / "Gym" / "2UAVs_Crossing_ORCA_nn.json")
-    assert variant["State_Machine"][4]["parameters"] == nn_parameters(str(model), 5.0)
+    assert variant["State_Machine"][5]["parameters"] == nn_parameters(str(model), 5.0)
 
 
 def test_ctrl_c_stops_the_running_batch_and_starts_no_other(tmp_path, model):

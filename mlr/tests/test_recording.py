@@ -29,7 +29,7 @@ import pytest
 from magna_common import ros_names
 from magna_common.simulation_bag import read_simulation_bag
 from magna_common.storage_tree import BAG_FILE
-from magna_uav.recorder import LEGACY_MISSING, columns, read_csv
+from magna_uav.recorder import GOAL_TARGET, columns, read_csv
 from mlr.bags import steps_from_bag
 from mlr.pickler import PicklerError, Teacher, runs, samples, steps_from_csv
 from tests.support import ROOT
@@ -78,7 +78,7 @@ class BagMaker:
         return self.Header(seq=0, stamp=self.Time(sec=ns // 10**9, nanosec=ns % 10**9), frame_id="map")
 
     def navigation(self, uav, row, role_number, role, algorithm, ns, goal=(5.0, 0.0, 2.0), sel=(1.0, 0.0, 0.0),
-                   goal_vel=(math.nan,) * 3, goal_dist=math.nan, log_ns=None, used=()):
+                   goal_vel=(math.nan,) * 3, goal_dist=math.nan, log_ns=None, used=(), teacher=(math.nan,) * 3):
         """`used`: (UAV id, pose stamp ns, velocity stamp ns) of the messages the step used (new bags only)."""
         step_type = self.store.types["magna_msgs/msg/NavigationStep"]
         named = {}
@@ -87,6 +87,8 @@ class BagMaker:
             named = dict(uav_ids=np.array([u[0] for u in used], dtype=np.uint32),
                          pose_stamps=[time(sec=u[1] // S, nanosec=u[1] % S) for u in used],
                          velocity_stamps=[time(sec=u[2] // S, nanosec=u[2] % S) for u in used])
+        if "teacher_velocity" in step_type.__dataclass_fields__:
+            named |= dict(teacher_velocity=self.Vector3(*teacher), fallback=-1 if math.isnan(teacher[0]) else 0)
         msg = step_type(
             header=self.header(ns), row=row, role_number=role_number, role=role, algorithm=algorithm,
             goal=self.Point(*goal), goal_velocity=self.Vector3(*goal_vel), goal_distance=goal_dist,
@@ -162,7 +164,8 @@ def test_a_hand_made_bag_gives_one_step_per_row_with_the_newest_poses_and_the_ra
     for row, number, role, algorithm, t in steps:
         bag.navigation(1, row, number, role, algorithm, round(t * S), sel=(row, 0.0, 0.0))
     bag.navigation(1, 3, 2, "path", "orca3d", round(1.1 * S), sel=(3.0, 0.0, 0.0), log_ns=2 * S)  # a replay
-    bag.navigation(2, 0, 1, "agent_ad", "orca3d", S, goal_vel=(0.5, 0.0, 0.0), goal_dist=2.0)
+    bag.navigation(2, 0, 1, "agent_ad", "neural_network", S, goal_vel=(0.5, 0.0, 0.0), goal_dist=2.0,
+                   teacher=(0.25, -0.5, 0.0))
     folder = sim_folder(tmp_path)
     bag.write(folder / "simulation.bag")
 
@@ -193,6 +196,8 @@ def test_a_hand_made_bag_gives_one_step_per_row_with_the_newest_poses_and_the_ra
     # UAV 2: its follower step keeps the goal's target; its own position came unstamped at 1 s
     assert len(two) == 1 and two.max_speed == 1.5 and two.role_end.tolist() == [True]
     assert two.goal_vel[0].tolist() == [0.5, 0.0, 0.0] and two.goal_dist.tolist() == [2.0]
+    # a network's step carries the teacher's answer (DAgger's label); ORCA-3D's own steps have none
+    assert two.teacher_vel.tolist() == [[0.25, -0.5, 0.0]] and np.all(np.isnan(one.teacher_vel))
     assert two.position[0].tolist() == [0.0, 3.0, 2.0]
 
 
@@ -267,10 +272,10 @@ def test_the_csvs_carry_the_goal_target_columns(recorded_run):
     for uav in recorded_run.uav_ids:
         header, rows = csv_rows(recorded_run, uav)
         assert header == columns([j for j in recorded_run.uav_ids if j != uav])
-        assert header[header.index("goal.z") + 1:header.index("sel_vel.x")] == list(LEGACY_MISSING)
+        assert header[header.index("goal.z") + 1:header.index("sel_vel.x")] == list(GOAL_TARGET)
         # this mission has no follower role: no step has a target to follow
         assert {row["role"] for row in rows} == {"take_off", "path", "land"}
-        assert all(math.isnan(row[c]) for row in rows for c in LEGACY_MISSING)
+        assert all(math.isnan(row[c]) for row in rows for c in GOAL_TARGET)
         path = [row for row in rows if row["algorithm"] == "orca3d"]
         assert len(path) > 50 and all(math.isfinite(row["goal.x"]) and math.isfinite(row["sel_vel.x"]) for row in path)
 
@@ -290,7 +295,7 @@ def test_the_bag_holds_one_navigation_step_per_recorded_row_with_its_values(reco
             assert (msg.role, msg.algorithm) == (row["role"], row["algorithm"])
             got = [msg.goal.x, msg.goal.y, msg.goal.z, msg.goal_velocity.x, msg.goal_velocity.y, msg.goal_velocity.z,
                    msg.goal_distance, msg.selected_velocity.x, msg.selected_velocity.y, msg.selected_velocity.z]
-            want = [row[c] for c in ("goal.x", "goal.y", "goal.z", *LEGACY_MISSING, "sel_vel.x", "sel_vel.y",
+            want = [row[c] for c in ("goal.x", "goal.y", "goal.z", *GOAL_TARGET, "sel_vel.x", "sel_vel.y",
                                      "sel_vel.z")]
             assert np.array_equal(got, want, equal_nan=True), index
             assert msg.feasible == (-1 if row["feasible"] is None else row["feasible"])

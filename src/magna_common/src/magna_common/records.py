@@ -38,6 +38,8 @@ INTERRUPTED = "interrupted"  # Ctrl-C / SIGTERM reached the batch or the supervi
 START_FAILED = "start_failed"  # the launch command could not be started
 SUPERVISOR_FAILED = "supervisor_failed"  # the supervisor ended without a result (written by the batch)
 NOT_RUN_TO_AN_OUTCOME = (CRASHED, START_FAILED, SUPERVISOR_FAILED)
+# Terminations that say nothing of how the mission flew: mlr leaves such simulations out.
+NOT_FLOWN = (INTERRUPTED, *NOT_RUN_TO_AN_OUTCOME)
 
 
 class RecordError(UserError, ValueError):
