@@ -6,6 +6,7 @@
     export RUN_DIR   export one finished run for the NAI
     fly              fly a mission with a network and with ORCA-3D, side by side
     thesis           reproduce the thesis experiment (datasets, architectures, flights)
+    dagger CONFIG    DAgger: fly the network, relabel its states with ORCA-3D's answers, retrain
 """
 from __future__ import annotations
 
@@ -19,7 +20,7 @@ from pathlib import Path
 
 from magna_common.cli_vocabulary import OutputExists, add_force, add_output, check_output
 
-HELP = "learn navigation networks from recorded missions (torch): train, pickle, board, export, fly, thesis"
+HELP = "learn navigation networks from recorded missions (torch): train, pickle, board, export, fly, thesis, dagger"
 # the command users type; messages name it, so that what they suggest can be typed as it is
 COMMAND = "magna learn"
 QUICK_CONFIG = "mlr/configs/crossing_quick.yaml"  # trains in under a minute on the data of `make run`
@@ -276,7 +277,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_force(exp, old=("--overwrite",), help="replace the .pt and .json files if they exist")
     exp.set_defaults(_mlr_run=cmd_export)
 
-    from mlr import fly, thesis
+    from mlr import dagger, fly, thesis
 
     fly_parser = sub.add_parser("fly", help=fly.HELP, description=fly.HELP)
     fly.add_arguments(fly_parser)
@@ -287,17 +288,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     thesis.add_arguments(thesis_parser)
     thesis_parser.set_defaults(_mlr_run=thesis.run)
 
+    dagger_parser = sub.add_parser("dagger", help=dagger.HELP, description=dagger.DESCRIPTION,
+                                   epilog=dagger.EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)
+    dagger.add_arguments(dagger_parser)
+    dagger_parser.set_defaults(_mlr_run=dagger.run)
+
 
 def run(args) -> int:
+    from magna_common.errors import UserError
     from mlr.config import ConfigError
     from mlr.pickler import PicklerError
 
     command = getattr(args, "_mlr_run", None)
     try:
         if command is None:
-            raise CliError("give a command: train, pickle, board, export, fly or thesis (--help lists them)")
+            raise CliError("give a command: train, pickle, board, export, fly, thesis or dagger (--help lists them)")
         return int(command(args) or 0)
-    except (CliError, ConfigError, PicklerError, FileExistsError, OutputExists) as err:
+    except (CliError, ConfigError, PicklerError, FileExistsError, OutputExists, UserError) as err:
         print(f"mlr: {err}", file=sys.stderr)
         return 2
 
