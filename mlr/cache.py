@@ -28,7 +28,7 @@ from mlr.preprocess import Prepared
 
 _MLR = Path(__file__).resolve().parent
 # the source files whose code decides each product (hashed as files: no need to import rosbags)
-CODE_FILES = {"pickled": ("pickler.py", "steps.py", "bags.py"), "prepared": ("preprocess.py",)}
+CODE_FILES = {"pickled": ("pickler.py", "steps.py", "bags.py"), "prepared": ("preprocess.py", "features.py")}
 
 
 def _code_hash(kind: str) -> str:
@@ -71,8 +71,10 @@ def pickled_key(selection: Selection, teacher: Teacher, source: Source, sims: li
                  "code": _code_hash("pickled")})
 
 
-def prepared_key(pickled: str, split: tuple[float, float, float], seed: int) -> str:
-    return _key({"pickled": pickled, "split": list(split), "seed": seed, "code": _code_hash("prepared")})
+def prepared_key(pickled: str, split: tuple[float, float, float], seed: int, normalization: str = "maxabs",
+                 features: str = "none") -> str:
+    return _key({"pickled": pickled, "split": list(split), "seed": seed, "normalization": normalization,
+                 "features": features, "code": _code_hash("prepared")})
 
 
 def cache_dir(data_root: Path) -> Path:
@@ -107,10 +109,18 @@ def cached_samples(selection: Selection, teacher: Teacher, source: Source, sims:
 
 
 def cached_prepared(samples: Samples, key: str, data_root: Path, split, seed: int,
-                    force: bool = False) -> tuple[Prepared, bool]:
-    path = cache_dir(data_root) / f"prepared_{prepared_key(key, tuple(split), seed)}.npz"
+                    force: bool = False, normalization: str = "maxabs", run=None) -> tuple[Prepared, bool]:
+    """Prepared data; with `run` (a RunConfig) its normalization and features apply."""
+    features = "none" if run is None else run.features
+    if run is not None:
+        normalization = run.normalization
+    path = cache_dir(data_root) / f"prepared_{prepared_key(key, tuple(split), seed, normalization, features)}.npz"
     if path.is_file() and not force:
         return preprocess.load_prepared(path), True
-    prepared = preprocess.prepare(samples, tuple(split), seed)
+    if features != "none":
+        from mlr.features import transformed
+
+        samples = transformed(samples, run)
+    prepared = preprocess.prepare(samples, tuple(split), seed, normalization)
     write_atomically(path, lambda out: preprocess.save_prepared(prepared, out), overwrite=True, binary=True)
     return prepared, False

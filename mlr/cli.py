@@ -130,7 +130,7 @@ def cmd_export(args) -> int:
     run = trained_config(run_dir)
     sims, _ = find_simulations(run.selection)
     samples, key, _ = cache.cached_samples(run.selection, run.teacher, run.source, sims)
-    prepared, _ = cache.cached_prepared(samples, key, run.selection.data_root, run.split, run.seed)
+    prepared, _ = cache.cached_prepared(samples, key, run.selection.data_root, run.split, run.seed, run=run)
     net, _ = load_trained(run_dir, prepared.train.x.shape[1])
     about = {"run": run_dir.name, "data": str(run.selection.series_dir), **saved.get("result", {})}
     path = export(net, run, prepared, args.output, about=about, overwrite=args.force)

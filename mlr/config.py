@@ -31,6 +31,8 @@ Pooling = Literal["max", "avg", "none"]
 Schedule = Literal["constant", "cosine"]
 Loss = Literal["mse", "l1", "norm"]
 Augmentation = Literal["none", "yaw"]
+Normalization = Literal["maxabs", "standard"]  # mlr.preprocess.NORMALIZATIONS
+Features = Literal["none", "geometric"]  # mlr.features
 
 ALGORITHM_ALIASES = {"orca3": "orca3d"}
 # key -> the words it takes, in the order error messages list them
@@ -39,7 +41,8 @@ CHOICES: dict[str, tuple[str, ...]] = {
     "model": get_args(Model),
     "optimizer": get_args(Optimizer), "activation": get_args(Activation), "padding": get_args(Padding),
     "pooling": get_args(Pooling), "lr_schedule": get_args(Schedule), "loss": get_args(Loss),
-    "augment": get_args(Augmentation)}
+    "augment": get_args(Augmentation), "normalization": get_args(Normalization),
+    "features": get_args(Features)}
 LIST_KEYS = frozenset({"datasets", "hidden_layers", "image_size", "split"})
 REQUIRED = ("world", "subworld", "mission", "submission")
 
@@ -70,9 +73,11 @@ class RunConfig:
     fvi: int = 0
     label: Label = "chosen"  # teacher: ORCA-3D's answer recorded while a network flew (DAgger's relabelled steps)
     # preprocessing
+    normalization: Normalization = "maxabs"  # of the inputs: max |x - mean| (the thesis's), or standard deviation
     split: tuple[float, float, float] = (0.7, 0.2, 0.1)
     seed: int = 0
     # the network
+    features: Features = "none"  # geometric: distances, closing speeds, the preferred velocity... (mlr.features)
     model: Model = "mlp"
     hidden_layers: tuple[int, ...] = (20, 30, 20)
     activation: Activation = "relu"
@@ -255,6 +260,9 @@ def load_sweep(path: str | Path, overrides: dict | None = None) -> Sweep:
             run.teacher  # noqa: B018 - checks the teacher's counts and role
         except ValueError as err:
             raise ConfigError(f"{path}: {err}") from None
+        if run.features != "none" and (run.model != "mlp" or run.augment != "none"):
+            raise ConfigError(f"{path}: features {run.features} is for an mlp without augmentation (the features are "
+                              "computed from the vector as recorded): use model mlp and augment none with it")
         if run.model == "cnn" and run.augment != "none":
             raise ConfigError(f"{path}: augment {run.augment} turns the vectors but not the depth image a cnn also "
                               "sees: use augment none with model cnn")

@@ -103,8 +103,13 @@ class DaggerConfig:
     def seed(self, iteration: int) -> int:
         return self.flight_seed + SEED_STRIDE * iteration
 
+    @property
+    def series(self) -> str:
+        """The batches' name prefix: dagger_NAME (NAME itself when it says dagger already)."""
+        return self.name if self.name.startswith("dagger") else f"dagger_{self.name}"
+
     def batch_name(self, iteration: int) -> str:
-        return f"dagger_{self.name}_{iteration:02d}"
+        return f"{self.series}_{iteration:02d}"
 
     def as_dict(self) -> dict:
         return {"name": self.name, "run": self.run.as_dict(), "iterations": self.iterations, "flights": self.flights,
@@ -228,13 +233,18 @@ def train_iteration(config: DaggerConfig, iteration: int, samples: Samples, grou
     from mlr.train import evaluate, load_trained, train_run
 
     run = config.run
-    prepared = prepare(samples, run.split, run.seed)
+    if run.features != "none":
+        from mlr.features import transformed
+
+        samples = transformed(samples, run)
+    prepared = prepare(samples, run.split, run.seed, run.normalization)
     test = split_indices(len(samples), run.split, run.seed)[2]  # the same shuffle prepare made
     if (directory / "run").exists():
         shutil.rmtree(directory / "run")  # an interrupted run starts again
     result = train_run(run, prepared, directory / "run", f"iteration {iteration}", progress=progress)
     net, _ = load_trained(directory / "run", prepared.train.x.shape[1])
-    accuracies: dict[str, float | None] = {"iteration": iteration, "samples": int(len(samples)), "teacher_samples": int(np.sum(groups == 0)),
+    accuracies: dict[str, float | None] = {"iteration": iteration, "samples": int(len(samples)),
+                                           "teacher_samples": int(np.sum(groups == 0)),
                   "relabelled_samples": int(np.sum(groups > 0)), "test_accuracy": result.test_accuracy,
                   "val_accuracy": result.val_accuracy, "train_seconds": result.wall_seconds}
     for label, mask in (("teacher_states", groups[test] == 0), ("network_states", groups[test] > 0)):
@@ -308,7 +318,7 @@ def evaluate_in_flight(config: DaggerConfig, model: Path, out: Path, args, fallb
     folder = out / ("evaluation_fallback" if fallback else "evaluation")
     if (folder / "comparison.json").is_file():
         return json.loads((folder / "comparison.json").read_text())
-    name = f"dagger_{config.name}_eval{'_fallback' if fallback else ''}"
+    name = f"{config.series}_eval{'_fallback' if fallback else ''}"
     orca_done = (out / "evaluation" / "comparison.json").is_file() or fallback
     args_ = _fly_args(config, args, model, name, config.evaluation_seed, config.evaluation_flights, folder,
                       "overwrite", fallback)
@@ -330,7 +340,7 @@ def _evaluation_orca(config: DaggerConfig, args) -> Path:
 
     run = config.run
     return StorageKey(run.world, run.subworld, run.mission, run.submission,
-                      f"dagger_{config.name}_eval_orca").dataset_dir(args.data_root, 1)
+                      f"{config.series}_eval_orca").dataset_dir(args.data_root, 1)
 
 
 # --- the loop -------------------------------------------------------------------------------------------------

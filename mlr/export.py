@@ -19,7 +19,7 @@ import torch
 from torch import nn
 
 from magna_common.files import write_atomically, write_text_atomically
-from magna_uav.nai.inputs import input_names, output_names
+from magna_uav.nai.inputs import input_names, input_size, output_names
 from magna_uav.nai.neural import load_model, spec_path
 from mlr.config import RunConfig
 from mlr.preprocess import Normalizer, Prepared
@@ -81,23 +81,53 @@ class ImageNetwork(nn.Module):
         return self.net(image, (x - self.x_mean) / self.x_scale) * self.y_scale + self.y_mean
 
 
-def wrap(net: nn.Module, prepared: Prepared) -> nn.Module:
+class FeatureNetwork(nn.Module):
+    """`features: geometric` networks (mlr.features): sel_vel = preferred velocity + the change the network
+    answers from the raw vector and its features, normalised together."""
+
+    if TYPE_CHECKING:  # the buffers _register_norms adds, declared for mypy only (see VectorNetwork)
+        x_mean: torch.Tensor
+        x_scale: torch.Tensor
+        y_mean: torch.Tensor
+        y_scale: torch.Tensor
+
+    def __init__(self, net: nn.Module, features: nn.Module, x_norm: Normalizer, y_norm: Normalizer):
+        super().__init__()
+        self.net = net
+        self.features = features
+        _register_norms(self, x_norm=x_norm, y_norm=y_norm)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        extra, preferred = self.features(x)
+        z = torch.cat([x, extra], dim=1)
+        return self.net((z - self.x_mean) / self.x_scale) * self.y_scale + self.y_mean + preferred
+
+
+def wrap(net: nn.Module, prepared: Prepared, run: RunConfig | None = None) -> nn.Module:
     net.eval()
+    if run is not None and run.features != "none":
+        from mlr.features import build, one_max_speed
+
+        features = build(run, one_max_speed(prepared.train.max_speed, "the training part")).float()
+        return FeatureNetwork(net, features, prepared.x_norm, prepared.y_norm).eval()
     if prepared.image_norm is None:
         return VectorNetwork(net, prepared.x_norm, prepared.y_norm).eval()
     return ImageNetwork(net, prepared.x_norm, prepared.y_norm, prepared.image_norm).eval()
 
 
 def spec_for(run: RunConfig, about: dict | None = None) -> dict:
+    if run.features != "none":  # for people: the NAI gives the same vector either way
+        about = {"features": run.features, **(about or {})}
     return {"role": run.role, "n_neighbors": run.n_neighbors, "n_obstacles": run.n_obstacles,
             "inputs": input_names(run.role, run.n_neighbors, run.n_obstacles), "outputs": output_names(),
             "image": {"height": run.image_size[0], "width": run.image_size[1]} if run.model == "cnn" else None,
             "neighbor_dist": run.neighbor_dist, "about": about or {}}
 
 
-def _raw_test_inputs(prepared: Prepared) -> tuple[np.ndarray, np.ndarray | None]:
+def _raw_test_inputs(prepared: Prepared, size: int) -> tuple[np.ndarray, np.ndarray | None]:
+    """The raw input vectors (their first `size` columns: features come after) and images of test samples."""
     part = prepared.test if len(prepared.test) else prepared.val
-    x = prepared.x_norm.invert(part.x[:CHECK_SAMPLES]).astype(np.float32)
+    x = prepared.x_norm.invert(part.x[:CHECK_SAMPLES])[:, :size].astype(np.float32)
     if part.images is None:
         return x, None
     assert prepared.image_norm is not None  # fitted whenever the samples have images (mlr.preprocess)
@@ -116,14 +146,14 @@ def export(net: nn.Module, run: RunConfig, prepared: Prepared, path: str | Path,
             if target.exists():
                 raise FileExistsError(f"{target}: already exists; pass --force to replace it, or choose "
                                       "another path")
-    module = wrap(net, prepared)
+    module = wrap(net, prepared, run)
     try:
         with warnings.catch_warnings():  # torch 2.13 calls TorchScript deprecated; it is the format the NAI flies
             warnings.filterwarnings("ignore", category=DeprecationWarning)
             scripted = torch.jit.script(module)
             write_atomically(path, lambda out: torch.jit.save(scripted, out), overwrite=True, binary=True)
         write_text_atomically(spec_file, json.dumps(spec_for(run, about), indent=2) + "\n", overwrite=True)
-        check_export(module, path, prepared)
+        check_export(module, path, prepared, input_size(run.role, run.n_neighbors, run.n_obstacles))
     except BaseException:
         for leftover in (path, spec_file):  # a network without its spec, or one that failed its check
             leftover.unlink(missing_ok=True)
@@ -131,9 +161,10 @@ def export(net: nn.Module, run: RunConfig, prepared: Prepared, path: str | Path,
     return path
 
 
-def check_export(module: nn.Module, path: Path, prepared: Prepared) -> float:
-    """The largest difference (m/s) between the trained module and the exported file; raises above TOLERANCE."""
-    x, images = _raw_test_inputs(prepared)
+def check_export(module: nn.Module, path: Path, prepared: Prepared, size: int) -> float:
+    """The largest difference (m/s) between the trained module and the exported file on raw input vectors of
+    `size` values; raises above TOLERANCE."""
+    x, images = _raw_test_inputs(prepared, size)
     with torch.no_grad():
         xt = torch.from_numpy(x)
         it = None if images is None else torch.from_numpy(images).unsqueeze(1)

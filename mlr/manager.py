@@ -46,7 +46,7 @@ class SweepOutcome:
 
 def _data_key(run: RunConfig) -> tuple:
     """What pickling and preprocessing depend on: runs equal here share their data."""
-    return (run.selection, run.teacher, run.source, run.split, run.seed)
+    return (run.selection, run.teacher, run.source, run.split, run.seed, run.normalization, run.features)
 
 
 def _finished(run_dir: Path, run: RunConfig) -> RunResult | None:
@@ -131,7 +131,7 @@ def run_sweep(sweep: Sweep, out: Path | None = None, overwrite: bool = False, fo
             log(f"data: {len(samples)} samples of role {run.role} flown with {run.algorithm} from {len(sims)} "
                 f"simulations ({'cached' if hit else 'pickled'}; {len(skipped)} left out)")
             prepared, hit = cache.cached_prepared(samples, pickled_key, run.selection.data_root, run.split, run.seed,
-                                                  force=force_data)
+                                                  force=force_data, run=run)
             log(f"split: {len(prepared.train)} train, {len(prepared.val)} validation, {len(prepared.test)} test "
                 f"({'cached' if hit else 'prepared'})")
             data[key] = (prepared, len(samples))

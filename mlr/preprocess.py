@@ -4,7 +4,9 @@
 The statistics come from the training part only (the validation and test parts must not leak
 into what the network sees as "normal"), and are kept so that the exported network can undo
 them: x' = (x - mean) / scale, x = x' * scale + mean, with scale = max |x - mean| per column
-(1 where a column is constant, so it maps to 0 instead of NaN).
+(1 where a column is constant, so it maps to 0 instead of NaN). `normalization="standard"`
+scales the inputs by their standard deviation instead (labels keep max-abs): an input whose
+extreme values are rare outliers (the padding of absent neighbours) then keeps its spread.
 """
 from __future__ import annotations
 
@@ -15,6 +17,7 @@ import numpy as np
 from mlr.pickler import Samples
 
 PARTS = ("train", "val", "test")
+NORMALIZATIONS = ("maxabs", "standard")
 
 
 @dataclass(frozen=True)
@@ -23,13 +26,15 @@ class Normalizer:
     scale: np.ndarray
 
     @staticmethod
-    def fit(values: np.ndarray, per_column: bool = True) -> Normalizer:
+    def fit(values: np.ndarray, per_column: bool = True, kind: str = "maxabs") -> Normalizer:
         values = np.asarray(values, dtype=float)
         if len(values) == 0:
             raise ValueError("no samples to take the mean of: the training part is empty")
+        if kind not in NORMALIZATIONS:
+            raise ValueError(f"normalization is {kind!r}: give one of {', '.join(NORMALIZATIONS)}")
         axis = 0 if per_column else None
         mean = values.mean(axis=axis)
-        scale = np.abs(values - mean).max(axis=axis)
+        scale = np.abs(values - mean).max(axis=axis) if kind == "maxabs" else values.std(axis=axis)
         scale = np.where(scale > 0, scale, 1.0)
         return Normalizer(np.asarray(mean, dtype=float), np.asarray(scale, dtype=float))
 
@@ -75,12 +80,13 @@ def split_indices(n: int, shares: tuple[float, float, float], seed: int) -> tupl
     return order[:n_train], order[n_train:n_train + n_val], order[n_train + n_val:]
 
 
-def prepare(samples: Samples, shares: tuple[float, float, float] = (0.7, 0.2, 0.1), seed: int = 0) -> Prepared:
+def prepare(samples: Samples, shares: tuple[float, float, float] = (0.7, 0.2, 0.1), seed: int = 0,
+            normalization: str = "maxabs") -> Prepared:
     if len(samples) < 10:
         raise ValueError(f"only {len(samples)} samples: too few to split into train, validation and test "
                          "(record more simulations, or check role, algorithm and datasets in the config)")
     train, val, test = split_indices(len(samples), shares, seed)
-    x_norm, y_norm = Normalizer.fit(samples.x[train]), Normalizer.fit(samples.y[train])
+    x_norm, y_norm = Normalizer.fit(samples.x[train], kind=normalization), Normalizer.fit(samples.y[train])
     images = samples.images
     image_norm = Normalizer.fit(images[train], per_column=False) if images is not None else None
 
