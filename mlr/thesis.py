@@ -9,6 +9,8 @@ For each of its two scenarios (four cylinders; central obstacle):
    like `magna learn train`;
 3. fly: the mission flown `--flights` times (20) with the best network and with ORCA-3D, on
    the same seeds (mlr.fly; an ORCA-3D batch flown before is reused);
+4. analysis: why the thesis's small networks fall short of its accuracies on our data (label
+   noise, the class of the problem, input scaling, the amount of data: mlr.thesis_gap);
 then a report (Markdown and a figure) beside the thesis's figures.
 
 Every stage skips the work already done, so an interrupted experiment goes on where it stopped.
@@ -34,7 +36,7 @@ examples:
   magna learn thesis --search-path ../shared/ros_magna_corpus --only four_cylinders --stages datasets  # [long]
 """
 CONFIGS = Path(__file__).resolve().parent / "configs"
-STAGES = ("datasets", "train", "fly")
+STAGES = ("datasets", "train", "fly", "analysis")
 SERIES = "thesis"
 FLIGHT_SEED = 1000  # the flights' waypoints are not those of the training simulations (seeds 1..80)
 
@@ -159,6 +161,16 @@ def fly(scenario: Scenario, args, out: Path, model: Path) -> None:
         raise RuntimeError(f"{scenario.title}: flying the comparison ended with status {status}")
 
 
+def analyse(scenario: Scenario, args, out: Path) -> None:
+    from mlr.config import load_sweep
+    from mlr.thesis_gap import analyse as measure
+
+    overrides = {"data_root": args.data_root, **({"steps": args.steps} if args.steps else {})}
+    run = load_sweep(scenario.config, overrides).runs[0]
+    measure(run, out / scenario.key / "analysis", progress=not args.quiet,
+            log=lambda message: print(f"analysis: {message}", file=sys.stderr, flush=True))
+
+
 def _read_json(path: Path) -> dict | None:
     return json.loads(path.read_text()) if path.is_file() else None
 
@@ -194,6 +206,11 @@ def report(scenarios: list[Scenario], out: Path) -> Path:
                          f"**{result['test_accuracy'] * 100:.1f}%** | {scenario.thesis_accuracy[0] * 100:.1f}-"
                          f"{scenario.thesis_accuracy[1] * 100:.1f}% |")
             bars.append((scenario, hidden, result["test_accuracy"]))
+    findings = [f for s in scenarios if (f := _read_json(out / s.key / "analysis" / "analysis.json")) is not None]
+    if findings:
+        from mlr.thesis_gap import markdown
+
+        lines += ["", "## Why the small networks fall short (mlr.thesis_gap)", "", markdown(findings).strip()]
     lines += ["", "## Flights: the best network against ORCA-3D, same seeds", ""]
     for scenario in scenarios:
         comparison = out / scenario.key / "fly" / "comparison.md"
@@ -251,6 +268,8 @@ def run(args) -> int:
             if not model.is_file():
                 raise FileNotFoundError(f"{model}: no trained network to fly: run the train stage first")
             fly(scenario, args, out, model)
+        if "analysis" in stages:
+            analyse(scenario, args, out)
     path = report(scenarios, out)
     print(path.read_text())
     print(f"report: {path}", file=sys.stderr)
