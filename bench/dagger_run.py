@@ -27,7 +27,7 @@ if __name__ == "__main__":  # `python bench/dagger_run.py` from any Python runs 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from mlr.dagger import DaggerError, load_config, results_markdown  # noqa: E402
+from mlr.dagger import DaggerError, load_config  # noqa: E402
 from mlr.pickler import find_simulations  # noqa: E402
 
 TARGET_SECONDS = 45 * 60.0
@@ -74,8 +74,7 @@ def main() -> int:
         return code
     results = json.loads((out / "results.json").read_text())
     training = sum(row["accuracy"]["train_seconds"] for row in results["iterations"])
-    print()
-    print(results_markdown(results))
+    print()  # the table of the run is printed above, by magna learn dagger
     print(f"| figure | measured | target | ratio (target / measured) |\n|---|---|---|---|\n"
           f"| whole run, teacher's dataset to final table | {wall / 60:.1f} min | <= {TARGET_SECONDS / 60:.0f} min | "
           f"{TARGET_SECONDS / wall:.2f} ({'met' if wall <= TARGET_SECONDS else 'missed'}) |\n"

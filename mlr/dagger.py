@@ -292,7 +292,6 @@ def fly_iteration(config: DaggerConfig, iteration: int, model: Path, directory: 
     if code not in (0, 1):
         raise RuntimeError(f"iteration {iteration}: magna run ended with status {code}; see its messages above")
     metrics = read_batch(plan.nn_dataset, f"network {iteration - 1}").to_json()
-    metrics["fallback_share"] = _fallback_share(plan.nn_dataset)
     write_text_atomically(directory / "flights.json", json.dumps(metrics, indent=2) + "\n", overwrite=True)
     return metrics
 
@@ -332,7 +331,10 @@ def evaluate_in_flight(config: DaggerConfig, model: Path, out: Path, args, fallb
         raise KeyboardInterrupt
     if code not in (0, 1):
         raise RuntimeError(f"evaluation: magna learn fly ended with status {code}; see its messages above")
-    return json.loads((folder / "comparison.json").read_text())
+    numbers = json.loads((folder / "comparison.json").read_text())
+    numbers["fallback_share"] = _fallback_share(plan.nn_dataset) if fallback else None
+    write_text_atomically(folder / "comparison.json", json.dumps(numbers, indent=2) + "\n", overwrite=True)
+    return numbers
 
 
 def _evaluation_orca(config: DaggerConfig, args) -> Path:
@@ -431,15 +433,13 @@ def results_markdown(results: dict) -> str:
              f"Network {'-'.join(map(str, config['run']['hidden_layers']))}, augment {config['run']['augment']}, "
              f"{config['run']['steps']} training steps per iteration; {config['flights']} flights per iteration.", "",
              "| iteration | samples (relabelled) | test accuracy | on the teacher's states | on the network's states "
-             "| its flights, collision-free | time to goal | fallback share |",
-             "|---|---|---|---|---|---|---|---|"]
+             "| its flights, collision-free | time to goal |",
+             "|---|---|---|---|---|---|---|"]
     for row in results["iterations"]:
         acc, flights = row["accuracy"], row["flights"]
-        share = flights.get("fallback_share") if flights else None
         lines.append(f"| {row['iteration']} | {acc['samples']} ({acc['relabelled_samples']}) | "
                      f"{_percent(acc['test_accuracy'])} | {_percent(acc['test_accuracy_teacher_states'])} | "
-                     f"{_percent(acc['test_accuracy_network_states'])} | {_rate(flights)} | {_time(flights)} | "
-                     f"{'-' if share is None else f'{share * 100:.1f}%'} |")
+                     f"{_percent(acc['test_accuracy_network_states'])} | {_rate(flights)} | {_time(flights)} |")
     lines += ["", "Each network's flights are the next iteration's: seeds it was not trained on. The last network's "
               "are the evaluation's.", ""]
     for key, title in (("evaluation", "the network alone (what counts)"),
@@ -448,13 +448,16 @@ def results_markdown(results: dict) -> str:
         if not numbers:
             continue
         orca, network = numbers["orca"], numbers["network"]
-        ratio = numbers.get("ratio")
+        ratio = numbers.get("collision_free_ratio")
+        share = numbers.get("fallback_share")
         lines += [f"Evaluation, {title}: seeds {config['evaluation_seed'] + 1}..", "",
                   "| | collision-free | time to goal |", "|---|---|---|",
                   f"| ORCA-3D | {_rate(orca)} | {_time(orca)} |",
                   f"| last network | {_rate(network)} | {_time(network)} |",
                   "", f"Ratio of collision-free rates (network / ORCA-3D): "
-                  f"{'-' if ratio is None else f'{ratio:.2f}'} (target >= 0.95).", ""]
+                  f"{'-' if ratio is None else f'{ratio:.2f}'} (target >= 0.95)."
+                  + ("" if share is None else f" The teacher's answer was sent in {share * 100:.1f}% of the "
+                                              "network's steps."), ""]
     return "\n".join(lines)
 
 
@@ -471,7 +474,7 @@ def draw(results: dict, path: Path) -> Path:
                        ("test_accuracy_network_states", "on the network's states")):
         values = [row["accuracy"].get(key) for row in rows]
         left.plot(x, [np.nan if v is None else v * 100 for v in values], marker="o", label=label)
-    left.set(xlabel="iteration", ylabel="test accuracy (%)", title="Accuracy", ylim=(0, 100))
+    left.set(xlabel="iteration", ylabel="test accuracy (%)", title="Accuracy", ylim=(0, 100), xticks=x)
     left.legend(loc="lower right")
     flown = [(row["iteration"], row["flights"]) for row in rows if row["flights"] and row["flights"]["simulations"]]
     right.plot([i for i, _ in flown], [f["collision_free"] / f["simulations"] * 100 for _, f in flown], marker="o",
@@ -479,15 +482,17 @@ def draw(results: dict, path: Path) -> Path:
     evaluation = results.get("evaluation")
     if evaluation and evaluation["orca"]["simulations"]:
         orca = evaluation["orca"]["collision_free"] / evaluation["orca"]["simulations"] * 100
-        net = evaluation["network"]
         right.axhline(orca, color="grey", linestyle="--", label="ORCA-3D (evaluation)")
         right.axhline(0.95 * orca, color="grey", linestyle=":", label="target: 0.95 x ORCA-3D")
-        if net["simulations"]:
-            right.plot([x[-1]], [net["collision_free"] / net["simulations"] * 100], marker="*", markersize=14,
-                       linestyle="none", label="last network (evaluation)")
+        for key, label, marker in (("evaluation", "last network (evaluation)", "*"),
+                                   ("evaluation_fallback", "last network + fallback (apart)", "P")):
+            flown_last = (results.get(key) or {}).get("network") or {}
+            if flown_last.get("simulations"):
+                right.plot([x[-1]], [flown_last["collision_free"] / flown_last["simulations"] * 100], marker=marker,
+                           markersize=12, linestyle="none", label=label)
     right.set(xlabel="iteration (network flown)", ylabel="collision-free flights (%)", title="In flight",
-              ylim=(-5, 105))
-    right.legend(loc="lower right", fontsize=8)
+              ylim=(-5, 105), xticks=x)
+    right.legend(loc="center left", fontsize=8)
     fig.suptitle(f"DAgger: {results['config']['name']}")
     fig.tight_layout()
     write_atomically(path, lambda out: fig.savefig(out, format="png", dpi=100), overwrite=True, binary=True)
@@ -500,12 +505,15 @@ def draw(results: dict, path: Path) -> Path:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("config", type=Path, help="the DAgger config (YAML or JSON; mlr/README.md, 'DAgger')")
     add_search_path(parser, what="the mission's world and mission files (passed on to magna run)")
-    parser.add_argument("--data-root", type=Path, help="where Simulations/ is (default: the training config's)")
+    parser.add_argument("--data-root", type=Path, metavar="DIR",
+                        help="where Simulations/ is (default: the training config's)")
     add_output(parser, metavar="DIR",
                help="where the iterations and the results go (default DATA_ROOT/mlr/dagger/NAME)")
-    parser.add_argument("--iterations", type=int, help="iterations after the first network (default: the config's)")
-    parser.add_argument("--flights", type=int, help="simulations per iteration (default: the config's)")
-    parser.add_argument("--steps", type=int, help="training steps per network (default: the training config's)")
+    parser.add_argument("--iterations", type=int, metavar="N",
+                        help="iterations after the first network (default: the config's)")
+    parser.add_argument("--flights", type=int, metavar="N", help="simulations per iteration (default: the config's)")
+    parser.add_argument("--steps", type=int, metavar="N",
+                        help="training steps per network (default: the training config's)")
     add_rtf(parser, help="real-time factor of the flights: 'max' runs as fast as the machine goes")
     add_force(parser, help="start afresh in an output folder that holds iterations of another config")
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
