@@ -143,7 +143,8 @@ def _short(value) -> str:
 _FIELDS = {f.name: f for f in fields(RunConfig)}
 
 
-def _read(path: Path) -> dict:
+def read_mapping(path: Path, what: str = "a mapping of hyperparameters (world: Gym, ...)") -> dict:
+    """A YAML or JSON file's top-level mapping; ConfigError naming the file otherwise (`what`: what to give)."""
     try:
         text = path.read_text()
     except OSError as err:
@@ -159,7 +160,7 @@ def _read(path: Path) -> dict:
         raise ConfigError(f"{path}: not valid {'JSON' if path.suffix.lower() == '.json' else 'YAML'}: {err}") \
             from None
     if not isinstance(raw, dict):
-        raise ConfigError(f"{path}: the top level must be a mapping of hyperparameters (world: Gym, ...)")
+        raise ConfigError(f"{path}: the top level must be {what}")
     return raw
 
 
@@ -235,7 +236,7 @@ def _check(path: Path, key: str, value):
 def load_sweep(path: str | Path, overrides: dict | None = None) -> Sweep:
     """Read a config file (plus `overrides`, e.g. from the command line) into its runs."""
     path = Path(path)
-    raw = _read(path)
+    raw = read_mapping(path)
     raw.update(overrides or {})
     unknown = [key for key in raw if key not in _FIELDS]
     if unknown:

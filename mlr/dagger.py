@@ -52,7 +52,7 @@ import numpy as np
 
 from magna_common.cli_vocabulary import add_force, add_output, add_rtf, add_search_path
 from magna_common.files import write_atomically, write_text_atomically
-from mlr.config import ConfigError, RunConfig, load_sweep
+from mlr.config import ConfigError, RunConfig, load_sweep, read_mapping
 from mlr.pickler import PicklerError, Samples, Selection, find_simulations
 
 HELP = "DAgger: fly the network, relabel its states with ORCA-3D's answers, retrain; a table and a figure"
@@ -131,17 +131,9 @@ def load_config(path: str | Path, overrides: dict | None = None) -> DaggerConfig
     """A DAgger config file (YAML or JSON; mlr/README.md, "DAgger") with `overrides` (command line) applied."""
     path = Path(path)
     try:
-        text = path.read_text()
-    except OSError as err:
-        raise DaggerError(f"{path}: cannot read the DAgger config: {err.strerror}") from None
-    try:
-        import yaml
-
-        raw = yaml.safe_load(text)
-    except Exception as err:  # yaml.YAMLError: say where
-        raise DaggerError(f"{path}: not valid YAML or JSON: {err}") from None
-    if not isinstance(raw, dict):
-        raise DaggerError(f"{path}: the top level must be a mapping (train: ..., iterations: ...)")
+        raw = read_mapping(path, "a mapping (train: ..., iterations: ...)")
+    except ConfigError as err:
+        raise DaggerError(str(err)) from None
     unknown = [key for key in raw if key not in KEYS]
     if unknown:
         raise DaggerError(f"{path}: unknown key {unknown[0]!r}: known keys are {', '.join(KEYS)}")
