@@ -14,6 +14,8 @@ reached, adds those answers to the data and trains again.
      every step (the recorder's teacher_vel);
   2. relabels: every step the network flew becomes a sample labelled with the teacher's answer
      (mlr.pickler, label "teacher"), from every simulation run to an outcome, collisions included;
+     with `teacher_agent_radius` the teacher is ORCA-3D with that margin, in flight and on its own
+     samples (relabelled from their input vectors, mlr.relabel);
   3. aggregates the teacher's samples and every iteration's relabelled samples so far;
   4. trains the same network again, from scratch, on the aggregate, and exports it.
 - Evaluation: the last network flies the evaluation seeds beside ORCA-3D (mlr.fly). With `fallback` it flies
@@ -73,6 +75,8 @@ KEYS: dict[str, tuple[object, str]] = {  # key -> (default, what to give)
     "evaluation_flights": (20, "a whole number >= 1"),
     "evaluation_seed": (1000, "a whole number >= 0: the evaluation flies seeds evaluation_seed + 1 .."),
     "fallback": (False, "true or false: also evaluate the last network with the NAI's safety fallback"),
+    "teacher_agent_radius": (None, "a radius in metres > 0, or null for the mission's: the teacher's ORCA-3D "
+                                   "agent_radius (a wider margin than the mission's)"),
 }
 
 
@@ -91,6 +95,7 @@ class DaggerConfig:
     evaluation_flights: int
     evaluation_seed: int
     fallback: bool
+    teacher_agent_radius: float | None = None  # the teacher's ORCA-3D agent_radius; None: the mission's
 
     @property
     def world(self) -> str:
@@ -114,7 +119,8 @@ class DaggerConfig:
     def as_dict(self) -> dict:
         return {"name": self.name, "run": self.run.as_dict(), "iterations": self.iterations, "flights": self.flights,
                 "flight_seed": self.flight_seed, "evaluation_flights": self.evaluation_flights,
-                "evaluation_seed": self.evaluation_seed, "fallback": self.fallback}
+                "evaluation_seed": self.evaluation_seed, "fallback": self.fallback,
+                "teacher_agent_radius": self.teacher_agent_radius}
 
     def fingerprint(self) -> dict:
         """What the finished iterations depend on: all but how many iterations there are to be."""
@@ -163,12 +169,17 @@ def load_config(path: str | Path, overrides: dict | None = None) -> DaggerConfig
                           f"{run.label}, model {run.model}")
     if not isinstance(values["fallback"], bool):
         raise DaggerError(f"{path}: fallback is {values['fallback']!r}: give {KEYS['fallback'][1]}")
+    radius = values["teacher_agent_radius"]
+    if radius is not None and (isinstance(radius, bool) or not isinstance(radius, int | float)
+                               or not math.isfinite(radius) or radius <= 0):
+        raise DaggerError(f"{path}: teacher_agent_radius is {radius!r}: give {KEYS['teacher_agent_radius'][1]}")
     return DaggerConfig(
         path, path.stem, run, _whole(path, "iterations", values["iterations"], 1),
         _whole(path, "flights", values["flights"], 1, SEED_STRIDE),
         _whole(path, "flight_seed", values["flight_seed"], 0),
         _whole(path, "evaluation_flights", values["evaluation_flights"], 1),
-        _whole(path, "evaluation_seed", values["evaluation_seed"], 0), values["fallback"])
+        _whole(path, "evaluation_seed", values["evaluation_seed"], 0), values["fallback"],
+        None if radius is None else float(radius))
 
 
 # --- the data ------------------------------------------------------------------------------------------------
@@ -182,8 +193,9 @@ def relabelled_selection(config: DaggerConfig, iteration: int, data_root: Path) 
                      f"{config.batch_name(iteration)}_nn", (1,))
 
 
-def teacher_samples(run: RunConfig, log: Callable[[str], None]) -> Samples:
-    """The teacher's own flights, as `magna learn train` reads them (cached)."""
+def teacher_samples(run: RunConfig, log: Callable[[str], None], agent_radius: float | None = None) -> Samples:
+    """The teacher's own flights, as `magna learn train` reads them (cached); with `agent_radius`, relabelled
+    with ORCA-3D at that radius from their input vectors (mlr.relabel)."""
     from mlr import cache
 
     sims, skipped = find_simulations(run.selection)
@@ -193,7 +205,17 @@ def teacher_samples(run: RunConfig, log: Callable[[str], None]) -> Samples:
     samples, _, hit = cache.cached_samples(run.selection, run.teacher, run.source, sims)
     log(f"teacher: {len(samples)} samples from {len(sims)} simulations ({len(skipped)} left out; "
         f"{'cached' if hit else 'pickled'})")
-    return samples
+    if agent_radius is None:
+        return samples
+    from mlr.relabel import relabelled, teacher_setup, with_param
+
+    started = time.monotonic()
+    setup = with_param(teacher_setup(sims[0], run), "agent_radius", agent_radius)
+    out = relabelled(samples, run, setup)
+    changed = float(np.mean(np.linalg.norm(out.y - samples.y, axis=1) > 0.1 * samples.max_speed))
+    log(f"teacher: relabelled with ORCA-3D's agent_radius {agent_radius:g} m in {time.monotonic() - started:.0f} s "
+        f"({changed * 100:.1f}% of the labels changed by more than the accuracy tolerance)")
+    return out
 
 
 def relabelled_samples(config: DaggerConfig, iteration: int, data_root: Path) -> Samples:
@@ -263,7 +285,8 @@ def _fly_args(config: DaggerConfig, args, model: Path, name: str, seed: int, n_i
               policy: str | None, fallback: bool = False) -> argparse.Namespace:
     return argparse.Namespace(world=config.world, mission=config.mission, model=model, n_iter=n_iter,
                               search_path=list(args.search_path), name=name, data_root=args.data_root, output=out,
-                              rtf=args.rtf, seed=seed, no_bag=True, policy=policy, skip_orca=False, fallback=fallback)
+                              rtf=args.rtf, seed=seed, no_bag=True, policy=policy, skip_orca=False, fallback=fallback,
+                              teacher_agent_radius=config.teacher_agent_radius)
 
 
 def fly_iteration(config: DaggerConfig, iteration: int, model: Path, directory: Path, args,
@@ -370,7 +393,7 @@ def run_dagger(config: DaggerConfig, args, out: Path, log: Callable[[str], None]
     check_output(config, out, args.force)
     run = config.run
     d = input_size(run.role, run.n_neighbors, run.n_obstacles)
-    parts = [teacher_samples(run, log)]
+    parts = [teacher_samples(run, log, config.teacher_agent_radius)]
     rows: list[dict] = []
     for iteration in range(config.iterations + 1):
         directory = out / f"iter_{iteration:02d}"
@@ -423,7 +446,9 @@ def results_markdown(results: dict) -> str:
     config = results["config"]
     lines = [f"# DAgger: {config['name']}", "",
              f"Network {'-'.join(map(str, config['run']['hidden_layers']))}, augment {config['run']['augment']}, "
-             f"{config['run']['steps']} training steps per iteration; {config['flights']} flights per iteration.", "",
+             f"{config['run']['steps']} training steps per iteration; {config['flights']} flights per iteration"
+             + (f"; the teacher's ORCA-3D agent_radius {config['teacher_agent_radius']:g} m"
+                if config.get("teacher_agent_radius") is not None else "") + ".", "",
              "| iteration | samples (relabelled) | test accuracy | on the teacher's states | on the network's states "
              "| its flights, collision-free | time to goal |",
              "|---|---|---|---|---|---|---|"]

@@ -84,6 +84,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="the network flies with the NAI's safety fallback: ORCA-3D, the teacher, takes over a "
                              "step whose network command would collide within its time horizon (report such "
                              "flights apart from the network's own)")
+    parser.add_argument("--teacher-agent-radius", type=float, metavar="M",
+                        help="the teacher's ORCA-3D agent_radius while the network flies (what the recorder's "
+                             "teacher_vel and the fallback use; default: the mission's)")
     policy = parser.add_mutually_exclusive_group()
     policy.add_argument("--append", dest="policy", action="store_const", const="append",
                         help="add the simulations to existing datasets (passed on to magna run)")
@@ -120,6 +123,16 @@ def _spec_arg(value: str) -> str:
     return str(path.resolve()) if value.endswith(".json") and path.is_file() else value
 
 
+def _teacher(args) -> dict[str, float] | None:
+    """The teacher's ORCA-3D parameters that differ from the mission's (--teacher-agent-radius)."""
+    radius = getattr(args, "teacher_agent_radius", None)
+    if radius is None:
+        return None
+    if not radius > 0:
+        raise FlyError(f"--teacher-agent-radius is {radius}: give a radius in metres > 0")
+    return {"agent_radius": float(radius)}
+
+
 def prepare(args) -> FlyPlan:
     """Check everything and write the network's mission; FlyError/InputError/StorageError before anything flies."""
     from magna_gs.inputs import resolve_inputs
@@ -150,7 +163,7 @@ def prepare(args) -> FlyPlan:
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
         raise FlyError(f"{inputs.mission_file}: cannot read it as JSON: {err}") from None
     variant, changes = nn_variant(raw, str(model), neighbor_dist, inputs.mission_file,
-                                  fallback=getattr(args, "fallback", False))
+                                  fallback=getattr(args, "fallback", False), teacher=_teacher(args))
     missing = [role for role in mission_roles(raw) if role != loaded.role]
     if missing:
         print(f"fly: warning: the model flies role {loaded.role!r}; the mission's {', '.join(missing)} role(s) will "

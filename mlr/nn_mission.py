@@ -67,6 +67,19 @@ def _unique_name(siblings: list, wanted: str) -> str:
     return name
 
 
+def _with_params(parameters: dict, values: dict[str, float]) -> dict:
+    """algorithm_control parameters with `values` set (replaced, or added at the end)."""
+    names = list(parameters.get("params") or [])
+    given = list(parameters.get("values") or [])
+    for name, value in values.items():
+        if name in names:
+            given[names.index(name)] = value
+        else:
+            names.append(name)
+            given.append(value)
+    return {**parameters, "params": names, "values": given}
+
+
 def _network_after(node: dict, siblings: list, parameters: dict) -> str:
     """Turn the ORCA-3D set state `node` into a configure (so the teacher keeps the mission's ORCA-3D parameters)
     and add after it a state that sets the network and goes on where `node` went; the new state's name."""
@@ -103,7 +116,8 @@ def _given_neighbor_dist(parameters: dict) -> float | None:
 
 
 def nn_variant(mission, model_path: str, neighbor_dist: float | None = None,
-               source: str | os.PathLike = "mission", fallback: bool = False) -> tuple[dict, list[Change]]:
+               source: str | os.PathLike = "mission", fallback: bool = False,
+               teacher: dict[str, float] | None = None) -> tuple[dict, list[Change]]:
     """(a copy of `mission` flying the network, what changed); FlyError naming `source` if nothing sets ORCA.
 
     Every algorithm_control state, at any depth, whose parameters name orca3/orca3d with action
@@ -116,6 +130,9 @@ def nn_variant(mission, model_path: str, neighbor_dist: float | None = None,
     instead (the teacher then has ORCA-3D's defaults). ORCA "configure" states stay: ORCA-3D still
     flies the roles no network is trained for (basic_move). `mission` is not modified.
     `fallback` adds the NAI's fallback parameter (1): the teacher takes over a colliding command.
+    `teacher` sets ORCA-3D parameters of the teacher in the configure state (e.g. {"agent_radius": 0.7}: a
+    teacher with a wider margin than the mission's ORCA-3D); a state in a Concurrence cannot carry them
+    (FlyError).
 
     The model path goes in text_value (a string field of the AlgorithmControl service); the
     ground station sends `values` as float64 and so cannot carry a path there.
@@ -149,9 +166,15 @@ def nn_variant(mission, model_path: str, neighbor_dist: float | None = None,
             network["params"], network["values"] = ["neighborDist", "fallback"], [dist, 1]
         added = ""
         if container == "Concurrence":
+            if teacher:
+                raise FlyError(f"{source}: {where} {node.get('name')!r} sets ORCA-3D inside a Concurrence, where the "
+                               "network's state replaces it and the teacher's parameters have no state to go in: "
+                               "leave the teacher's parameters out, or set ORCA-3D before the Concurrence")
             node["parameters"] = network
         else:
             added = _network_after(node, siblings, network)
+            if teacher:
+                node["parameters"] = _with_params(node["parameters"], teacher)
         changes.append(Change(where, str(node.get("name", "")), f"{parameters['name']} set", dist, origin, added))
     if not changes:
         found = ", ".join(f"{p.get('name')} {p.get('action')} at {where}" for where, _, p, _, _ in controls)

@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import logging
 import math
 from collections.abc import Callable
 from pathlib import Path
@@ -34,100 +33,10 @@ import numpy as np
 from magna_common.files import write_text_atomically
 from mlr.config import RunConfig
 from mlr.metrics import TOLERANCE, within_tolerance
-from mlr.pickler import Simulation
+from mlr.relabel import orca_from_inputs, teacher_nai, teacher_setup
 
 SHARES = (0.25, 0.5, 1.0)
 BASELINE_LAYERS = (20, 30, 20)
-
-
-@dataclasses.dataclass(frozen=True)
-class TeacherSetup:
-    """What ORCA-3D was given in the scenario's missions, besides the input vector."""
-
-    orca_params: tuple[list[str], list]  # the mission's algorithm_control orca set: names, values
-    obstacle_radius: float | None  # the one bounding radius of every obstacle; None: several, or none seen
-    safety_radius: float
-    max_speed: float
-
-
-def teacher_setup(sim: Simulation, run: RunConfig) -> TeacherSetup:
-    """The ORCA-3D parameters from the simulation's mission, the obstacles' radius from its recorded gaps."""
-    from magna_common.airframes import load_airframe
-    from magna_common.storage_tree import MISSION_FILE
-    from magna_uav.recorder import read_csv
-
-    mission = json.loads((sim.directory / MISSION_FILE).read_text())
-    orca = next(s["parameters"] for s in _states(mission.get("State_Machine", []))
-                if s.get("state_type") == "algorithm_control"
-                and s.get("parameters", {}).get("name") in ("orca3", "orca3d"))
-    model = next(iter(sim.uav_models.values()))
-    airframe = load_airframe(model)
-    radii = []
-    for csv_path in sorted(sim.directory.glob("uav_*.csv")):
-        for row in read_csv(csv_path)[1]:
-            for k in range(5):
-                gap = row.get(f"obs{k}.gap", math.nan)
-                if math.isfinite(gap):
-                    centre = np.array([row[f"obs{k}.pos.{a}"] for a in "xyz"])
-                    own = np.array([row[f"pos.{a}"] for a in "xyz"])
-                    radii.append(float(np.linalg.norm(centre - own)) - gap - airframe.safety_radius)
-    # a sphere's gap is its centre's distance less both radii: one radius throughout means spheres of one size
-    radius = float(np.median(radii)) if radii and np.ptp(radii) < 1e-6 else None
-    return TeacherSetup((list(orca.get("params", [])), list(orca.get("values", []))), radius,
-                        float(airframe.safety_radius), float(airframe.max_speed))
-
-
-def _states(nodes):
-    for node in nodes:
-        if isinstance(node, dict):
-            yield node
-            yield from _states(node.get("occurrencies", []) or [])
-
-
-def teacher_nai(setup: TeacherSetup):
-    """The NAI flying ORCA-3D as the missions set it, on the numpy reference (no ROS here)."""
-    from magna_uav.nai.interface import NavigationInterface
-    from magna_uav.nai.orca import ReferenceSolver
-
-    # the reference is chosen on purpose here: its one warning about a missing service would mislead
-    logging.getLogger("magna_uav.nai").setLevel(logging.ERROR)
-    nav = NavigationInterface(setup.max_speed, setup.safety_radius, solver=ReferenceSolver())
-    nav.control("orca3d", "set", *setup.orca_params)
-    return nav
-
-
-def orca_from_inputs(x: np.ndarray, run: RunConfig, setup: TeacherSetup, nav=None) -> tuple[np.ndarray, np.ndarray]:
-    """(ORCA-3D's answer, the preferred velocity) from one path-role input vector (module docstring, 1); `nav`:
-    a `teacher_nai(setup)` to reuse."""
-    from magna_uav.nai.goal import Goal
-    from magna_uav.nai.inputs import input_names, pad_position
-    from magna_uav.nai.simple import simple_velocity
-    from magna_uav.world_view import AgentState, Obstacle, WorldView
-
-    names = input_names(run.role, run.n_neighbors, run.n_obstacles)
-    value = dict(zip(names, x, strict=True))
-
-    def block(name: str) -> np.ndarray:
-        return np.array([value[f"{name}.{a}"] for a in "xyz"])
-
-    pad = pad_position(run.neighbor_dist)
-    view = WorldView(1)
-    own = AgentState(1, np.zeros(3), velocity=block("own_vel"), safety_radius=setup.safety_radius)
-    view.update_agent(own)
-    for k in range(run.n_neighbors):
-        position, velocity = block(f"others_pos_rel[{k}]"), block(f"others_vel[{k}]")
-        if not (np.array_equal(position, pad) and not velocity.any()):
-            view.update_agent(AgentState(2 + k, position, velocity=velocity, safety_radius=setup.safety_radius))
-    obstacles = []
-    for k in range(run.n_obstacles):
-        position = block(f"obstacles_pos_rel[{k}]")
-        if not np.array_equal(position, pad) and setup.obstacle_radius is not None:
-            obstacles.append(Obstacle(f"o{k}", position, setup.obstacle_radius))
-    view.set_obstacles(obstacles)
-    goal = Goal(block("goal_pose_rel"))
-    nav = nav if nav is not None else teacher_nai(setup)
-    preferred, _ = simple_velocity(own, goal, setup.max_speed)
-    return nav.velocity(view, goal).velocity, preferred
 
 
 def argmax_agreement(predicted: np.ndarray, labels: np.ndarray) -> float:

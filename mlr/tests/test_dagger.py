@@ -19,7 +19,7 @@ from magna_uav.nai.orca import ReferenceSolver
 from magna_uav.recorder import read_csv
 from magna_uav.world_view import AgentState, WorldView
 from mlr import dagger
-from mlr.pickler import Teacher, find_simulations, pickle_simulations
+from mlr.pickler import PicklerError, Teacher, find_simulations, pickle_simulations
 from tests.support import ROOT
 
 pytestmark = pytest.mark.filterwarnings("ignore:`torch.jit.*` is deprecated:DeprecationWarning")
@@ -52,6 +52,20 @@ def test_a_config_narrows_the_training_sweep_to_one_run(tmp_path, recorded_run):
     seeds = [set(range(config.seed(k) + 1, config.seed(k) + config.flights + 1)) for k in (1, 2)]
     seeds.append(set(range(config.evaluation_seed + 1, config.evaluation_seed + config.evaluation_flights + 1)))
     assert sum(map(len, seeds)) == len(set().union(*seeds))
+    assert config.teacher_agent_radius is None
+    wider = dagger.load_config(dagger_config(tmp_path, teacher_agent_radius=0.7))
+    assert wider.teacher_agent_radius == 0.7 and wider.fingerprint() != config.fingerprint()
+
+
+def test_a_teacher_margin_needs_obstacles_the_input_vector_can_size(tmp_path, recorded_run):
+    # the crossing's obstacles are spheres and cylinders of several sizes: its samples cannot be relabelled
+    data = tmp_path / "data"
+    shutil.copytree(recorded_run.sim_dir.parent, data / recorded_run.sim_dir.parent.relative_to(recorded_run.data_root))
+    training_config(tmp_path, recorded_run, data)
+    config = dagger.load_config(dagger_config(tmp_path, teacher_agent_radius=0.7))
+    assert len(dagger.teacher_samples(config.run, lambda message: None)) > 100  # the recorded labels, as they are
+    with pytest.raises(PicklerError, match="obstacles are not spheres of one size"):
+        dagger.teacher_samples(config.run, lambda message: None, config.teacher_agent_radius)
 
 
 @pytest.mark.parametrize("values,message", [
@@ -59,6 +73,7 @@ def test_a_config_narrows_the_training_sweep_to_one_run(tmp_path, recorded_run):
     ({"iterations": 0}, "iterations is 0: give a whole number >= 1"),
     ({"flights": 101}, "flights is 101: give a whole number of simulations per iteration, 1..100"),
     ({"fallback": "yes"}, "fallback is 'yes': give true or false"),
+    ({"teacher_agent_radius": 0}, "teacher_agent_radius is 0: give a radius in metres > 0"),
     ({"flight": 3}, "unknown key 'flight': known keys are train, select"),
     ({"train": "missing.yaml"}, "train missing.yaml: .*missing.yaml: cannot read the config"),
     ({"select": {"hidden_layers": [16, 16], "algorithm": "neural_network", "label": "teacher"}},

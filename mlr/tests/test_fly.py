@@ -110,6 +110,11 @@ def test_central_cylinder_corpus_mission_keeps_its_distance_unless_the_spec_give
     assert (changes[0].neighbor_dist, changes[0].neighbor_dist_from) == (4.5, "the model's spec")
     assert from_spec["State_Machine"][6]["parameters"] == {**nn_parameters(MODEL, 4.5),
                                                            "params": ["neighborDist", "fallback"], "values": [4.5, 1]}
+    # a teacher with a wider margin than the mission's: the configure state carries it
+    taught, _ = nn_mission.nn_variant(original, MODEL, source=CENTRAL_CYLINDER, teacher={"agent_radius": 0.7})
+    params = taught["State_Machine"][5]["parameters"]
+    assert params["action"] == "configure" and params["values"][params["params"].index("agent_radius")] == 0.7
+    assert params["params"] == original["State_Machine"][5]["parameters"]["params"]
     assert str(changes[0]) == ("State_Machine[5] 'algorithm_control': orca3 set -> orca3 configure (the teacher's "
                                "parameters), then 'algorithm_control_nn': neural_network set, neighborDist 4.5 "
                                "(the model's spec)")
@@ -164,6 +169,13 @@ def test_states_at_any_depth_are_followed_by_the_network_and_orca_configure_stay
     assert deep["outcomes"] == {"completed": "deep_nn_2"} and network["outcomes"] == {"completed": "next"}
     assert network["parameters"] == nn_parameters(MODEL, 5.0)
     assert nested_set["parameters"] == {"name": "orca3d", "action": "set"} and len(mission["State_Machine"]) == 3
+    # the teacher's own parameters: added to a configure; a Concurrence has no state to carry them
+    with pytest.raises(nn_mission.FlyError, match="inside a Concurrence.*teacher's parameters"):
+        nn_mission.nn_variant(mission, MODEL, teacher={"agent_radius": 0.7})
+    mission["State_Machine"][1]["occurrencies"].pop(0)
+    taught, _ = nn_mission.nn_variant(mission, MODEL, teacher={"agent_radius": 0.7})
+    assert taught["State_Machine"][1]["occurrencies"][0]["occurrencies"][0]["parameters"] == \
+        {"name": "orca3d", "action": "configure", "params": ["agent_radius"], "values": [0.7]}
 
 
 @pytest.mark.parametrize("mission", [SIMPLE_MISSION, CORPUS / "Missions" / "Gym" / "only_world.json"],
