@@ -69,7 +69,7 @@ SEED_STRIDE = 100  # iteration k flies seeds flight_seed + 100 k + 1 ..: up to 1
 KEYS: dict[str, tuple[object, str]] = {  # key -> (default, what to give)
     "train": (None, "the path of a training config (relative to this file) whose dataset is the teacher's flights"),
     "select": ({}, "a mapping of training-config keys to one value each, so that one run is left"),
-    "iterations": (4, "a whole number >= 1"),
+    "iterations": (4, "a whole number >= 0 (0: imitation alone, then the evaluation)"),
     "flights": (20, f"a whole number of simulations per iteration, 1..{SEED_STRIDE}"),
     "flight_seed": (2000, "a whole number >= 0: iteration k flies seeds flight_seed + 100 k + 1 .."),
     "evaluation_flights": (20, "a whole number >= 1"),
@@ -174,7 +174,7 @@ def load_config(path: str | Path, overrides: dict | None = None) -> DaggerConfig
                                or not math.isfinite(radius) or radius <= 0):
         raise DaggerError(f"{path}: teacher_agent_radius is {radius!r}: give {KEYS['teacher_agent_radius'][1]}")
     return DaggerConfig(
-        path, path.stem, run, _whole(path, "iterations", values["iterations"], 1),
+        path, path.stem, run, _whole(path, "iterations", values["iterations"], 0),
         _whole(path, "flights", values["flights"], 1, SEED_STRIDE),
         _whole(path, "flight_seed", values["flight_seed"], 0),
         _whole(path, "evaluation_flights", values["evaluation_flights"], 1),
@@ -544,10 +544,10 @@ def run(args) -> int:
                  "data_root": str(args.data_root) if args.data_root is not None else None}
     try:
         config = load_config(args.config, overrides)
-        for key in ("iterations", "flights", "steps"):
+        for key, low in (("iterations", 0), ("flights", 1), ("steps", 1)):
             value = getattr(args, key)
-            if value is not None and value < 1:
-                raise DaggerError(f"--{key} is {value}: give a whole number >= 1")
+            if value is not None and value < low:
+                raise DaggerError(f"--{key} is {value}: give a whole number >= {low}")
         args.data_root = Path(config.run.data_root).expanduser().resolve()
         out = Path(args.output).expanduser().resolve() if args.output is not None \
             else args.data_root / "mlr" / "dagger" / config.name

@@ -70,7 +70,7 @@ def test_a_teacher_margin_needs_obstacles_the_input_vector_can_size(tmp_path, re
 
 @pytest.mark.parametrize("values,message", [
     ({"select": {}}, "sweeps hidden_layers (2 runs): give select with one value for each"),
-    ({"iterations": 0}, "iterations is 0: give a whole number >= 1"),
+    ({"iterations": -1}, "iterations is -1: give a whole number >= 0"),
     ({"flights": 101}, "flights is 101: give a whole number of simulations per iteration, 1..100"),
     ({"fallback": "yes"}, "fallback is 'yes': give true or false"),
     ({"teacher_agent_radius": 0}, "teacher_agent_radius is 0: give a radius in metres > 0"),
