@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import hashlib
 import json
 import math
 import shutil
@@ -326,18 +327,22 @@ def _fallback_share(dataset: Path) -> float | None:
 
 def evaluate_in_flight(config: DaggerConfig, model: Path, out: Path, args, fallback: bool,
                        log: Callable[[str], None]) -> dict:
-    """The network beside ORCA-3D on the evaluation seeds (mlr.fly); the comparison's numbers."""
+    """The network beside ORCA-3D on the evaluation seeds (mlr.fly); the comparison's numbers. A comparison
+    there already is reused when it flew this very network, byte for byte (more iterations later, or a training
+    done again, make another one)."""
     from mlr import fly
 
     folder = out / ("evaluation_fallback" if fallback else "evaluation")
-    if (folder / "comparison.json").is_file():
-        return json.loads((folder / "comparison.json").read_text())
+    digest = hashlib.sha256(model.read_bytes()).hexdigest()
+    done = _read(folder / "comparison.json")
+    if done is not None and done.get("model_sha256") == digest:
+        log(f"evaluation{' with the fallback' if fallback else ''}: flown before ({folder / 'comparison.json'})")
+        return done
     name = f"{config.series}_eval{'_fallback' if fallback else ''}"
-    orca_done = (out / "evaluation" / "comparison.json").is_file() or fallback
     args_ = _fly_args(config, args, model, name, config.evaluation_seed, config.evaluation_flights, folder,
                       "overwrite", fallback)
     plan = fly.prepare(args_)
-    if fallback and orca_done:  # ORCA-3D was flown on the same seeds for the plain network: compare with it
+    if fallback:  # ORCA-3D was flown on the same seeds for the plain network just before: compare with it
         plan = dataclasses.replace(plan, orca_argv=None, orca_dataset=_evaluation_orca(config, args))
     log(f"evaluation{' with the fallback' if fallback else ''}: the last network and ORCA-3D, "
         f"{config.evaluation_flights} simulations each (seeds {config.evaluation_seed + 1}..)")
@@ -348,6 +353,7 @@ def evaluate_in_flight(config: DaggerConfig, model: Path, out: Path, args, fallb
         raise RuntimeError(f"evaluation: magna learn fly ended with status {code}; see its messages above")
     numbers = json.loads((folder / "comparison.json").read_text())
     numbers["fallback_share"] = _fallback_share(plan.nn_dataset) if fallback else None
+    numbers["model_sha256"] = digest
     write_text_atomically(folder / "comparison.json", json.dumps(numbers, indent=2) + "\n", overwrite=True)
     return numbers
 

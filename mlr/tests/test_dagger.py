@@ -1,5 +1,6 @@
 """DAgger (`magna learn dagger`): the config, the relabelling against ORCA-3D itself, one short iteration end
 to end through the whole stack, and going on where a run stopped."""
+import hashlib
 import json
 import os
 import re
@@ -147,6 +148,9 @@ def test_one_dagger_iteration_end_to_end_then_it_goes_on_where_it_stopped(tmp_pa
     table = (out / "results.md").read_text()
     assert "| 0 |" in table and "| 1 |" in table and "Ratio of collision-free rates" in table
     assert json.loads((out / "iter_01" / "net.json").read_text())["about"]["iteration"] == 1
+    # the evaluation names the very network it flew, so a later one is flown again, not taken for it
+    evaluated = json.loads((out / "evaluation" / "comparison.json").read_text())["model_sha256"]
+    assert evaluated == hashlib.sha256((out / "iter_01" / "net.pt").read_bytes()).hexdigest()
 
     # the relabelling: every step the network flew carries ORCA-3D's answer to the very state the row records
     flown = data / "Simulations" / "Gym" / "Central_Obstacle_Torus" / "Gym" / "2UAVs_Crossing_ORCA_nn" \
