@@ -50,6 +50,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -57,6 +58,9 @@ from magna_common.cli_vocabulary import add_force, add_output, add_rtf, add_sear
 from magna_common.files import write_atomically, write_text_atomically
 from mlr.config import ConfigError, RunConfig, load_sweep, read_mapping
 from mlr.pickler import PicklerError, Samples, Selection, find_simulations
+
+if TYPE_CHECKING:  # mlr.fly is imported when a flight is due: the parser stays light
+    from mlr.fly import FlyRequest
 
 HELP = "DAgger: fly the network, relabel its states with ORCA-3D's answers, retrain; a table and a figure"
 DESCRIPTION = __doc__
@@ -282,12 +286,14 @@ def _percent(value: float | None) -> str:
 
 # --- flights --------------------------------------------------------------------------------------------------
 
-def _fly_args(config: DaggerConfig, args, model: Path, name: str, seed: int, n_iter: int, out: Path,
-              policy: str | None, fallback: bool = False) -> argparse.Namespace:
-    return argparse.Namespace(world=config.world, mission=config.mission, model=model, n_iter=n_iter,
-                              search_path=list(args.search_path), name=name, data_root=args.data_root, output=out,
-                              rtf=args.rtf, seed=seed, no_bag=True, policy=policy, skip_orca=False, fallback=fallback,
-                              teacher_agent_radius=config.teacher_agent_radius)
+def _fly_request(config: DaggerConfig, args, model: Path, name: str, seed: int, n_iter: int, out: Path,
+                 policy: str | None, fallback: bool = False) -> FlyRequest:
+    from mlr.fly import FlyRequest
+
+    return FlyRequest(world=config.world, mission=config.mission, model=model, name=name, data_root=args.data_root,
+                      n_iter=n_iter, search_path=list(args.search_path), output=out, rtf=args.rtf, seed=seed,
+                      no_bag=True, policy=policy, fallback=fallback,
+                      teacher_agent_radius=config.teacher_agent_radius)
 
 
 def fly_iteration(config: DaggerConfig, iteration: int, model: Path, directory: Path, args,
@@ -298,8 +304,8 @@ def fly_iteration(config: DaggerConfig, iteration: int, model: Path, directory: 
 
     policy = "overwrite" if relabelled_selection(config, iteration, args.data_root).dataset_dirs()[0].exists() \
         else None  # a batch interrupted before flights.json: flown again whole
-    plan = fly.prepare(_fly_args(config, args, model, config.batch_name(iteration), config.seed(iteration),
-                                 config.flights, directory, policy))
+    plan = fly.prepare(_fly_request(config, args, model, config.batch_name(iteration), config.seed(iteration),
+                                    config.flights, directory, policy))
     log(f"iteration {iteration}: network {iteration - 1} flies {config.flights} simulations (seeds "
         f"{config.seed(iteration) + 1}..{config.seed(iteration) + config.flights}): {' '.join(plan.nn_argv)}")
     code, interrupted = fly.run_batch(plan.nn_argv)
@@ -339,9 +345,9 @@ def evaluate_in_flight(config: DaggerConfig, model: Path, out: Path, args, fallb
         log(f"evaluation{' with the fallback' if fallback else ''}: flown before ({folder / 'comparison.json'})")
         return done
     name = f"{config.series}_eval{'_fallback' if fallback else ''}"
-    args_ = _fly_args(config, args, model, name, config.evaluation_seed, config.evaluation_flights, folder,
-                      "overwrite", fallback)
-    plan = fly.prepare(args_)
+    request = _fly_request(config, args, model, name, config.evaluation_seed, config.evaluation_flights, folder,
+                           "overwrite", fallback)
+    plan = fly.prepare(request)
     if fallback:  # ORCA-3D was flown on the same seeds for the plain network just before: compare with it
         plan = dataclasses.replace(plan, orca_argv=None, orca_dataset=_evaluation_orca(config, args))
     log(f"evaluation{' with the fallback' if fallback else ''}: the last network and ORCA-3D, "

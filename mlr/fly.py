@@ -30,7 +30,7 @@ import signal
 import subprocess
 import sys
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 from magna_common.cli_vocabulary import add_output, add_rtf, add_search_path, parse_rtf
@@ -123,87 +123,112 @@ def _spec_arg(value: str) -> str:
     return str(path.resolve()) if value.endswith(".json") and path.is_file() else value
 
 
-def _teacher(args) -> dict[str, float] | None:
-    """The teacher's ORCA-3D parameters that differ from the mission's (--teacher-agent-radius)."""
-    radius = getattr(args, "teacher_agent_radius", None)
-    if radius is None:
-        return None
-    if not radius > 0:
-        raise FlyError(f"--teacher-agent-radius is {radius}: give a radius in metres > 0")
-    return {"agent_radius": float(radius)}
+@dataclass(frozen=True)
+class FlyRequest:
+    """What to fly and compare: the command line's options, typed. Other commands (DAgger) build one directly."""
+
+    world: str
+    mission: str
+    model: Path
+    name: str
+    data_root: Path
+    n_iter: int = 20
+    search_path: list[Path] = field(default_factory=list)
+    output: Path | None = None
+    rtf: str = "max"
+    seed: int = 0
+    no_bag: bool = False
+    policy: str | None = None  # None, "append" or "overwrite" (passed on to magna run)
+    skip_orca: bool = False
+    fallback: bool = False
+    teacher_agent_radius: float | None = None
+
+    @classmethod
+    def from_args(cls, args: argparse.Namespace) -> FlyRequest:
+        return cls(**{f.name: getattr(args, f.name) for f in fields(cls)})
+
+    def teacher(self) -> dict[str, float] | None:
+        """The teacher's ORCA-3D parameters that differ from the mission's (--teacher-agent-radius)."""
+        radius = self.teacher_agent_radius
+        if radius is None:
+            return None
+        if not radius > 0:
+            raise FlyError(f"--teacher-agent-radius is {radius}: give a radius in metres > 0")
+        return {"agent_radius": float(radius)}
 
 
-def prepare(args) -> FlyPlan:
+def prepare(request: FlyRequest) -> FlyPlan:
     """Check everything and write the network's mission; FlyError/InputError/StorageError before anything flies."""
     from magna_gs.inputs import resolve_inputs
     from magna_uav.nai.neural import NeuralModelError, load_model
 
-    if args.n_iter < 1:
-        raise FlyError(f"--n-iter must be >= 1, got {args.n_iter}")
-    rtf = parse_rtf(args.rtf)
-    orca_name, nn_name = f"{args.name}_orca", f"{args.name}_nn"
+    if request.n_iter < 1:
+        raise FlyError(f"--n-iter must be >= 1, got {request.n_iter}")
+    rtf = parse_rtf(request.rtf)
+    orca_name, nn_name = f"{request.name}_orca", f"{request.name}_nn"
     for value in (orca_name, nn_name):
         check_component(value, "--name")
     magna = repo_root() / "magna"
     if not os.access(magna, os.X_OK):
         raise FlyError(f"{magna}: no magna command there; set MAGNA_ROOT to the repository root")
 
-    model = args.model.expanduser().resolve()
+    model = request.model.expanduser().resolve()
     try:
         loaded = load_model(model)  # as the UAV managers will: a bad model stops here, not 20 missions later
     except NeuralModelError as err:
         raise FlyError(str(err)) from None
     neighbor_dist = loaded.spec.neighbor_dist  # the distance it was trained with, when its spec says
 
-    search = [p.expanduser().resolve() for p in args.search_path]
-    world, mission = _spec_arg(args.world), _spec_arg(args.mission)
+    search = [p.expanduser().resolve() for p in request.search_path]
+    world, mission = _spec_arg(request.world), _spec_arg(request.mission)
     inputs = resolve_inputs(world, mission, search)
     try:
         raw = json.loads(inputs.mission_file.read_text())
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
         raise FlyError(f"{inputs.mission_file}: cannot read it as JSON: {err}") from None
     variant, changes = nn_variant(raw, str(model), neighbor_dist, inputs.mission_file,
-                                  fallback=getattr(args, "fallback", False), teacher=_teacher(args))
+                                  fallback=request.fallback, teacher=request.teacher())
     missing = [role for role in mission_roles(raw) if role != loaded.role]
     if missing:
         print(f"fly: warning: the model flies role {loaded.role!r}; the mission's {', '.join(missing)} role(s) will "
               "hover with no network for them", file=sys.stderr)
 
-    data_root = args.data_root.expanduser().resolve()
-    out = (args.output.expanduser() if args.output is not None else data_root / "mlr" / "fly" / args.name).resolve()
+    data_root = request.data_root.expanduser().resolve()
+    out = request.output.expanduser() if request.output is not None else data_root / "mlr" / "fly" / request.name
+    out = out.resolve()
     nn_submission = f"{inputs.submission}{VARIANT_SUFFIX}"
     orca_dataset = StorageKey(inputs.world, inputs.subworld, inputs.mission, inputs.submission,
                               orca_name).dataset_dir(data_root, 1)
     nn_dataset = StorageKey(inputs.world, inputs.subworld, inputs.mission, nn_submission,
                             nn_name).dataset_dir(data_root, 1)
     # magna run would stop at such a conflict too, but only after the other batch had flown
-    if args.skip_orca:
+    if request.skip_orca:
         if not existing_simulations(orca_dataset):
             raise FlyError(f"--skip-orca: {orca_dataset} holds no simulations; run without --skip-orca first")
-    elif args.policy is None and existing_simulations(orca_dataset):
+    elif request.policy is None and existing_simulations(orca_dataset):
         raise FlyError(f"{orca_dataset} holds simulations already; nothing was started. Choose --append, "
                        "--overwrite, --skip-orca (compare with them) or another --name")
-    if args.policy is None and existing_simulations(nn_dataset):
+    if request.policy is None and existing_simulations(nn_dataset):
         raise FlyError(f"{nn_dataset} holds simulations already; nothing was started. Choose --append, "
                        "--overwrite or another --name")
 
-    path = write_variant(out, inputs.mission, inputs.submission, variant, args.policy == "overwrite")
+    path = write_variant(out, inputs.mission, inputs.submission, variant, request.policy == "overwrite")
     nn_search = [out, *search]
     found = resolve_inputs(world, f"{inputs.mission}/{nn_submission}", nn_search)  # the ground station's checks
     if found.mission_file != path.resolve():
         raise FlyError(f"magna run would fly {found.mission_file} instead of {path}; rename or move it")
 
-    common = ["--world", world, "--n-iter", str(args.n_iter), "--rtf", rtf, "--seed", str(args.seed),
+    common = ["--world", world, "--n-iter", str(request.n_iter), "--rtf", rtf, "--seed", str(request.seed),
               "--data-root", str(data_root)]
-    if args.policy:
-        common.append(f"--{args.policy}")
-    if args.no_bag:
+    if request.policy:
+        common.append(f"--{request.policy}")
+    if request.no_bag:
         common.append("--no-bag")
 
     def searching(dirs):
         return [arg for d in dirs for arg in ("--search-path", str(d))]
 
-    orca_argv = None if args.skip_orca else [str(magna), "run", *common, "--mission", mission, "--name", orca_name,
+    orca_argv = None if request.skip_orca else [str(magna), "run", *common, "--mission", mission, "--name", orca_name,
                                              *searching(search)]
     nn_argv = [str(magna), "run", *common, "--mission", f"{inputs.mission}/{nn_submission}", "--name", nn_name,
                *searching(nn_search)]
@@ -296,7 +321,7 @@ def run(args) -> int:
     from magna_gs.inputs import InputError
 
     try:
-        plan = prepare(args)
+        plan = prepare(FlyRequest.from_args(args))
         return fly(plan)
     except (FlyError, InputError, StorageError) as err:
         raise UsageError(" ".join(str(err).split())) from None
