@@ -67,17 +67,22 @@ def _unique_name(siblings: list, wanted: str) -> str:
     return name
 
 
-def _with_params(parameters: dict, values: dict[str, float]) -> dict:
-    """algorithm_control parameters with `values` set (replaced, or added at the end)."""
-    names = list(parameters.get("params") or [])
-    given = list(parameters.get("values") or [])
-    for name, value in values.items():
+def parameters_with(names: list, values: list, updates: dict[str, float]) -> tuple[list, list]:
+    """An algorithm_control state's `params` and `values` lists with `updates` set (replaced, or added at the
+    end); the lists given are left as they were."""
+    names, values = list(names), list(values)
+    for name, value in updates.items():
         if name in names:
-            given[names.index(name)] = value
+            values[names.index(name)] = value
         else:
             names.append(name)
-            given.append(value)
-    return {**parameters, "params": names, "values": given}
+            values.append(value)
+    return names, values
+
+
+def _with_params(parameters: dict, updates: dict[str, float]) -> dict:
+    names, values = parameters_with(parameters.get("params") or [], parameters.get("values") or [], updates)
+    return {**parameters, "params": names, "values": values}
 
 
 def _network_after(node: dict, siblings: list, parameters: dict) -> str:

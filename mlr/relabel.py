@@ -11,6 +11,7 @@ vector does not say an obstacle's size, and `relabelled` refuses.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import logging
 import math
@@ -18,6 +19,7 @@ import math
 import numpy as np
 
 from mlr.config import RunConfig
+from mlr.nn_mission import parameters_with
 from mlr.pickler import PicklerError, Samples, Simulation
 
 
@@ -77,21 +79,34 @@ def teacher_nai(setup: TeacherSetup):
     return nav
 
 
+@functools.lru_cache(maxsize=16)
+def _layout(role: str, n_neighbors: int, n_obstacles: int, neighbor_dist: float) -> tuple[dict[str, list[int]],
+                                                                                       np.ndarray]:
+    """Where each xyz block sits in the input vector, and the padding position: worked out once per layout."""
+    from magna_uav.nai.inputs import input_names, pad_position
+
+    names = input_names(role, n_neighbors, n_obstacles)
+    blocks = {name.rsplit(".", 1)[0] for name in names if name.endswith(".x")}
+    columns = {block: [names.index(f"{block}.{a}") for a in "xyz"] for block in blocks}
+    return columns, pad_position(neighbor_dist)
+
+
 def orca_from_inputs(x: np.ndarray, run: RunConfig, setup: TeacherSetup, nav=None) -> tuple[np.ndarray, np.ndarray]:
     """(ORCA-3D's answer, the preferred velocity) from one path-role input vector (module docstring, 1); `nav`:
     a `teacher_nai(setup)` to reuse."""
     from magna_uav.nai.goal import Goal
-    from magna_uav.nai.inputs import input_names, pad_position
     from magna_uav.nai.simple import simple_velocity
     from magna_uav.world_view import AgentState, Obstacle, WorldView
 
-    names = input_names(run.role, run.n_neighbors, run.n_obstacles)
-    value = dict(zip(names, x, strict=True))
+    columns, pad = _layout(run.role, run.n_neighbors, run.n_obstacles, run.neighbor_dist)
+    if len(x) != sum(len(c) for c in columns.values()):
+        raise ValueError(f"an input vector of {len(x)} values; the {run.role} role with {run.n_neighbors} "
+                         f"neighbour(s) and {run.n_obstacles} obstacle(s) has "
+                         f"{sum(len(c) for c in columns.values())}")
 
     def block(name: str) -> np.ndarray:
-        return np.array([value[f"{name}.{a}"] for a in "xyz"])
+        return np.asarray(x[columns[name]], dtype=float)
 
-    pad = pad_position(run.neighbor_dist)
     view = WorldView(1)
     own = AgentState(1, np.zeros(3), velocity=block("own_vel"), safety_radius=setup.safety_radius)
     view.update_agent(own)
@@ -113,13 +128,7 @@ def orca_from_inputs(x: np.ndarray, run: RunConfig, setup: TeacherSetup, nav=Non
 
 def with_param(setup: TeacherSetup, name: str, value: float) -> TeacherSetup:
     """The same teacher with one ORCA-3D parameter (algorithm_control name) set to `value`."""
-    names, values = list(setup.orca_params[0]), list(setup.orca_params[1])
-    if name in names:
-        values[names.index(name)] = value
-    else:
-        names.append(name)
-        values.append(value)
-    return dataclasses.replace(setup, orca_params=(names, values))
+    return dataclasses.replace(setup, orca_params=parameters_with(*setup.orca_params, {name: value}))
 
 
 def relabelled(samples: Samples, run: RunConfig, setup: TeacherSetup) -> Samples:
@@ -136,12 +145,6 @@ def relabelled(samples: Samples, run: RunConfig, setup: TeacherSetup) -> Samples
 
 
 def _any_obstacle(x: np.ndarray, run: RunConfig) -> bool:
-    from magna_uav.nai.inputs import input_names, pad_position
-
-    names = input_names(run.role, run.n_neighbors, run.n_obstacles)
-    pad = pad_position(run.neighbor_dist)
-    for k in range(run.n_obstacles):
-        columns = [names.index(f"obstacles_pos_rel[{k}].{a}") for a in "xyz"]
-        if np.any(np.any(x[:, columns] != pad, axis=1)):
-            return True
-    return False
+    columns, pad = _layout(run.role, run.n_neighbors, run.n_obstacles, run.neighbor_dist)
+    return any(np.any(np.any(x[:, columns[f"obstacles_pos_rel[{k}]"]] != pad, axis=1))
+               for k in range(run.n_obstacles))
