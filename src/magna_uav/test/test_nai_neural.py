@@ -297,6 +297,28 @@ def test_the_fallback_sends_the_teachers_answer_only_when_the_networks_would_col
         nav.control("neural_network", "configure", ["fallback"], [2])
 
 
+def test_teacher_0_skips_the_teachers_solve_unless_the_fallback_needs_it(tmp_path):
+    path = save(tmp_path, TowardsGoal(input_size("path", 2, 1), gain=1.0))
+    solves = []
+
+    class CountingSolver(ReferenceSolver):
+        def new_velocity(self, *args, **kwargs):
+            solves.append(1)
+            return super().new_velocity(*args, **kwargs)
+
+    nav = NavigationInterface(2.0, 0.3, solver=CountingSolver())
+    nav.control("neural_network", "set", ["teacher"], [0], text_value=str(path))
+    alone = nav.velocity(crossing_world(), Goal([10, 0, 5]))
+    assert alone.teacher_velocity is None and not alone.fallback and not solves
+    assert alone.velocity[0] == pytest.approx(2.0)  # the network's own command, straight ahead
+    # the fallback needs the teacher's answer: it is solved, and sent, all the same
+    nav.control("neural_network", "configure", ["fallback"], [1])
+    saved = nav.velocity(crossing_world(), Goal([10, 0, 5]))
+    assert solves and saved.fallback and np.array_equal(saved.velocity, saved.teacher_velocity)
+    with pytest.raises(ValueError, match="teacher is 0.5"):
+        nav.control("neural_network", "configure", ["teacher"], [0.5])
+
+
 @pytest.mark.parametrize("velocity,others,expected", [
     ([1, 0, 0], [AgentState(2, [3, 0, 5], velocity=[-1, 0, 0])], True),  # head on: closes 2 m/s, 2 m to go
     ([-1, 0, 0], [AgentState(2, [3, 0, 5], velocity=[-1, 0, 0])], False),  # same velocity: the gap stays

@@ -11,7 +11,8 @@ magna_msgs/AlgorithmControl service) through `NavigationInterface.control`:
   agent_radius (0.5 m), maxSpeed (2 m/s).
 - "neural_network": the model of the goal's role (`neural`). Parameters: model (the path
   of a TorchScript file; or the request's text_value), neighborDist (6 m: selection and
-  padding of the inputs, `inputs`), fallback (0: off, the default; 1: on, see below).
+  padding of the inputs, `inputs`), fallback (0: off, the default; 1: on, see below), teacher
+  (1, the default: solve the teacher's answer at every step; 0: do not, see below).
 
 The teacher (DAgger): while a network flies, every command also carries ORCA-3D's answer from the
 same WorldView and goal, with the ORCA-3D parameters as they stand (`Command.teacher_velocity`,
@@ -19,7 +20,9 @@ saturated like any command). The recorder writes it beside the network's, so a f
 network is relabelled by its teacher (mlr's DAgger). With fallback 1 the teacher also takes over a
 step whose network command would collide within ORCA-3D's timeHorizon (`would_collide`: the
 command inside a velocity obstacle of a UAV or obstacle ORCA-3D considers); `Command.fallback` says
-so. The plain network is fallback 0.
+so. The plain network is fallback 0. The teacher's solve costs one ORCA-3D step per command; a flight
+that records nothing for DAgger (a real UAV with a slow companion computer) may turn it off with
+teacher 0, and then `teacher_velocity` is None, unless fallback 1 needs the answer anyway.
 
 ORCA-3D's agent_radius is the radius every UAV has in ORCA when its safety radius is
 smaller: the margin that absorbs the autopilot's lag (`orca`). maxSpeed is kept but changes
@@ -137,6 +140,7 @@ PARAMETERS: dict[str, dict[str, tuple[_Checker, str]]] = {
         "model": (_path, "the path of a TorchScript file (its .json spec beside it)"),
         "neighborDist": (_positive, "a finite positive distance in metres"),
         "fallback": (_flag, "0 (the network alone) or 1 (the teacher takes over a colliding command)"),
+        "teacher": (_flag, "1 (ORCA-3D's answer is solved beside the network's) or 0 (it is not)"),
     },
 }
 
@@ -201,7 +205,7 @@ class NavigationInterface:
         self._params: dict[str, dict[str, ParamValue]] = {
             "simple": {"brakingDistance": self.max_speed * DEFAULT_BRAKING_TIME},
             "orca3d": {name: getattr(Params(), field) for name, field in ALGORITHM_CONTROL_NAMES.items()},
-            "neural_network": {"model": "", "neighborDist": DEFAULT_NEIGHBOR_DIST, "fallback": 0},
+            "neural_network": {"model": "", "neighborDist": DEFAULT_NEIGHBOR_DIST, "fallback": 0, "teacher": 1},
         }
         self._models: dict[str, NeuralModel] = {}  # by role
         self._last_error = ""
@@ -377,24 +381,29 @@ class NavigationInterface:
             raise LookupError(f"neural_network has no model for role {goal.role!r} (loaded: {loaded}); load one "
                               "with algorithm_control configure neural_network and the model path")
         velocity, neighbors = model.velocity(view, goal, self._number_param("neural_network", "neighborDist"))
-        teacher = self._orca_result(view, goal)
-        fallback = bool(self._params["neural_network"]["fallback"]) and self._collides(view, goal, velocity, teacher)
+        wanted = self._params["neural_network"]
+        if not (wanted["teacher"] or wanted["fallback"]):
+            return Command(velocity, self._yaw_rate(view, goal, velocity), "neural_network", True, neighbors.ids,
+                           neighbors.obstacle_names)
+        params = self.orca_params()
+        teacher = self._orca_result(view, goal, params)
+        fallback = bool(wanted["fallback"]) and self._collides(velocity, view, teacher, params)
         if fallback:
             velocity = teacher.velocity
         return Command(velocity, self._yaw_rate(view, goal, velocity), "neural_network", True, neighbors.ids,
                        neighbors.obstacle_names, teacher_velocity=teacher.velocity.copy(), fallback=fallback)
 
-    def _orca_result(self, view: WorldView, goal: Goal) -> OrcaResult:
-        """ORCA-3D's step with its parameters as they stand: what it flies, or the teacher's answer."""
+    def _orca_result(self, view: WorldView, goal: Goal, params: Params | None = None) -> OrcaResult:
+        """ORCA-3D's step with its parameters as they stand (`params`: those, built already): what it flies,
+        or the teacher's answer."""
         n_obstacles = self.params("orca3d")[ORCA_OBSTACLES]
         assert isinstance(n_obstacles, int)  # from _whole, or N_neighbors_aware's default, which is an int too
-        return self._orca.velocity(view, self._preferred(view, goal), self.orca_params(), n_obstacles,
+        return self._orca.velocity(view, self._preferred(view, goal), params or self.orca_params(), n_obstacles,
                                    self.safety_radius, self.max_speed)
 
-    def _collides(self, view: WorldView, goal: Goal, velocity: np.ndarray, teacher: OrcaResult) -> bool:
-        """Would `velocity` (saturated as it would be sent) collide within ORCA-3D's horizon with what the
-        teacher avoided?"""
-        params = self.orca_params()
+    def _collides(self, velocity: np.ndarray, view: WorldView, teacher: OrcaResult, params: Params) -> bool:
+        """Would `velocity` (saturated as it would be sent) collide within ORCA-3D's horizon (`params`, the
+        teacher's) with what the teacher avoided?"""
         return would_collide(view, saturate(velocity, self.max_speed), teacher.neighbors, self.safety_radius,
                              params.agent_radius, params.time_horizon)
 
