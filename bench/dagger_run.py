@@ -5,7 +5,7 @@ DAgger table, the wall time per part (training, flights and evaluation) and the 
 teacher's dataset must be recorded first (the config's comment says how); without it, it says so and exits 2.
 Never fails on a time.
 
-    python bench/dagger_run.py [--config mlr/configs/dagger_central_obstacle.yaml]
+    python bench/dagger_run.py [--config mlr/configs/dagger_central_obstacle_margin06.yaml]
         [--search-path ../shared/ros_magna_corpus] [--data-root DIR] [--iterations N] [--flights N]
 """
 from __future__ import annotations
@@ -36,7 +36,8 @@ CORPUS = ROOT.parent / "shared" / "ros_magna_corpus"
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--config", type=Path, default=ROOT / "mlr" / "configs" / "dagger_central_obstacle.yaml")
+    parser.add_argument("--config", type=Path,
+                        default=ROOT / "mlr" / "configs" / "dagger_central_obstacle_margin06.yaml")
     parser.add_argument("--search-path", type=Path, action="append",
                         help=f"where the ROS-MAGNA files are (default {CORPUS} when it exists)")
     parser.add_argument("--data-root", type=Path, help="where the teacher's Simulations/ are (default: the config's)")
