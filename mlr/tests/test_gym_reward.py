@@ -1,6 +1,7 @@
 """mlr.gym.reward: each term on hand-made steps."""
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -12,10 +13,10 @@ W = RewardWeights()
 
 
 def step(**change) -> StepOutcome:
-    values = dict(distance_before=5.0, distance_after=4.8, gap=math.inf, collided=False,
-                  command=np.array([2.0, 0.0, 0.0]), previous_command=np.array([2.0, 0.0, 0.0]), max_speed=2.0)
-    values.update(change)
-    return StepOutcome(**values)
+    cruising = StepOutcome(distance_before=5.0, distance_after=4.8, gap=math.inf, collided=False,
+                           command=np.array([2.0, 0.0, 0.0]), previous_command=np.array([2.0, 0.0, 0.0]),
+                           max_speed=2.0)
+    return dataclasses.replace(cruising, **change)
 
 
 def test_free_flight_towards_the_goal_earns_the_distance_gained_less_the_time():
