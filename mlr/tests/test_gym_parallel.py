@@ -1,0 +1,61 @@
+"""mlr.gym.parallel.MagnaNavParallelEnv: PettingZoo's API test, seeding, and agents that end on their own."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from pettingzoo.test import parallel_api_test
+
+from mlr.gym.parallel import MagnaNavParallelEnv
+from mlr.gym.scenario import load_scenario
+from tests.support import CORPUS
+
+
+@pytest.fixture(scope="module")
+def central():
+    return load_scenario("Gym/1Obs_Central_Cylinder", "Gym/2UAVs_2paths_Central_Cylinder", [CORPUS])
+
+
+@pytest.fixture
+def env(central):
+    made = MagnaNavParallelEnv(scenario=central, max_steps=40)
+    yield made
+    made.close()
+
+
+def test_pettingzoos_parallel_api_test_passes(env):
+    parallel_api_test(env, num_cycles=60)
+
+
+def test_agents_are_the_missions_uavs_and_a_seed_repeats_their_episode(env):
+    def episode(seed):
+        observations, infos = env.reset(seed=seed)
+        assert env.agents == ["uav_1", "uav_2"]
+        trace = []
+        for k in range(10):
+            actions = {name: np.array([0.5, np.cos(k), 0.2 * i], dtype=np.float32)
+                       for i, name in enumerate(env.agents)}
+            observations, rewards, *_ = env.step(actions)
+            trace.append((observations["uav_1"].copy(), rewards["uav_2"]))
+        return infos, trace
+
+    first, again, other = episode(4), episode(4), episode(5)
+    np.testing.assert_array_equal(first[0]["uav_2"]["goal"], again[0]["uav_2"]["goal"])
+    for (obs_a, reward_a), (obs_b, reward_b) in zip(first[1], again[1], strict=True):
+        np.testing.assert_array_equal(obs_a, obs_b)
+        assert reward_a == reward_b
+    assert not np.array_equal(first[0]["uav_1"]["goal"], other[0]["uav_1"]["goal"])
+
+
+def test_two_uavs_flying_into_each_other_both_end_and_leave_the_agent_list(env):
+    env.reset(seed=1)
+    env.swarm.fleet.place(0, np.array([[-1.5, 6.0, 3.0], [1.5, 6.0, 3.0]]))  # head on, clear of the spheres
+    actions = {"uav_1": np.array([2.0, 0.0, 0.0], dtype=np.float32),
+               "uav_2": np.array([-2.0, 0.0, 0.0], dtype=np.float32)}
+    for _ in range(20):
+        _, rewards, terminations, _, infos = env.step(actions)
+        if any(terminations.values()):
+            break
+    assert terminations == {"uav_1": True, "uav_2": True}
+    assert all(infos[name]["collided"] for name in ("uav_1", "uav_2"))
+    assert all(rewards[name] < -env.weights.collision_penalty / 2 for name in ("uav_1", "uav_2"))
+    assert env.agents == []
