@@ -68,7 +68,7 @@ class MagnaNavEnv(gym.Env):
         for j in self._others:  # the others go on to their next goal
             if swarm.distance(j) <= self.weights.goal_radius:
                 swarm.next_goal(j)
-        collided = LEARNER in touched
+        collided = (0, LEARNER) in touched
         after = swarm.distance(LEARNER)
         terms = reward_terms(StepOutcome(before, after, swarm.gap(LEARNER), collided, command, self._previous_command,
                                          self.max_speed), self.weights)

@@ -72,7 +72,7 @@ class MagnaNavParallelEnv(ParallelEnv):
         observations, rewards, terminations, truncations, infos = {}, {}, {}, {}, {}
         for name in self.agents:
             j = self._index[name]
-            collided, after = j in touched, swarm.distance(j)
+            collided, after = (0, j) in touched, swarm.distance(j)
             terms = reward_terms(StepOutcome(before[name], after, swarm.gap(j), collided, commands[j],
                                              self._previous[j], self.scenario.uavs[j].max_speed), self.weights)
             reached = after <= self.weights.goal_radius and not collided

@@ -1,10 +1,10 @@
-"""What both gym environments share: one copy of a scenario in flight, its goals, and each UAV's view of it.
+"""What the gym environments share: copies of a scenario in flight, their goals, and each UAV's view.
 
-`Swarm` places the UAVs where the mission's take-off leaves them, draws every UAV's goals from the
-mission's path definitions for an episode's seed, sends one control step of velocity commands, and
-answers per UAV: the NAI's input vector, the distance to its goal, the gap to the nearest UAV or
-obstacle, whether it touched anything. The single-agent environment (env.py) and the PettingZoo one
-(parallel.py) differ only in who commands which UAV.
+`Swarm` places a copy's UAVs where the mission's take-off leaves them, draws every UAV's goals from
+the mission's path definitions for an episode's seed, sends one control step of velocity commands to
+every copy, and answers per UAV (copy c, UAV j): the NAI's input vector, the distance to its goal, the
+gap to the nearest UAV or obstacle, whether it touched anything. The single-agent environment (env.py)
+and the PettingZoo one (parallel.py) fly one copy; the vectorised one (vector.py) flies many.
 """
 from __future__ import annotations
 
@@ -23,45 +23,60 @@ GOALS_PER_EPISODE = 64  # drawn per UAV at reset; a UAV moves on to its next goa
 
 
 class Swarm:
-    def __init__(self, scenario: Scenario, n_neighbors: int = 1, n_obstacles: int = 2, neighbor_dist: float = 6.0):
+    def __init__(self, scenario: Scenario, n_neighbors: int = 1, n_obstacles: int = 2, neighbor_dist: float = 6.0,
+                 copies: int = 1):
         self.scenario = scenario
         self.n_neighbors, self.n_obstacles, self.neighbor_dist = n_neighbors, n_obstacles, neighbor_dist
-        self.fleet = Fleet(scenario)
+        self.fleet = Fleet(scenario, copies)
+        self.copies = copies
         self.uavs: tuple[GymUav, ...] = scenario.uavs
         self.observation_size = input_size(ROLE, n_neighbors, n_obstacles)
-        self._goals = np.zeros((len(self.uavs), GOALS_PER_EPISODE, 3))
-        self._next_goal = np.zeros(len(self.uavs), dtype=int)
+        self._goals = np.zeros((copies, len(self.uavs), GOALS_PER_EPISODE, 3))
+        self._next_goal = np.zeros((copies, len(self.uavs)), dtype=int)
+        self._positions = self.fleet.positions()  # (K, M, 3), read once per control step
+        self._velocities = self.fleet.velocities()
 
     def close(self) -> None:
         self.fleet.close()
 
-    def start(self, seed: int) -> None:
-        """A new episode: goals drawn for `seed`, every UAV hovering at its take-off point."""
+    def start(self, seed: int, copy: int = 0) -> None:
+        """A new episode of copy `copy`: goals drawn for `seed`, every UAV hovering at its take-off point."""
         for j, uav in enumerate(self.uavs):
-            self._goals[j] = self.scenario.goals(uav, seed + j, GOALS_PER_EPISODE)
-        self._next_goal[:] = 0
+            self._goals[copy, j] = self.scenario.goals(uav, seed + j, GOALS_PER_EPISODE)
+        self._next_goal[copy] = 0
         lift = np.array([0.0, 0.0, self.scenario.take_off_height])
-        self.fleet.place(0, np.array([uav.start + lift for uav in self.uavs]))
+        self.place(np.array([uav.start + lift for uav in self.uavs]), copy)
 
-    def fly(self, commands: np.ndarray) -> set[int]:
-        """Send (M, 3) velocity commands (each saturated to its UAV's max speed) for one control step; the
-        indices of the UAVs that began touching something."""
-        sent = np.array([saturate(np.asarray(c, dtype=float), uav.max_speed)
-                         for c, uav in zip(commands, self.uavs, strict=True)])
-        return {touch.uav for touch in self.fleet.control_step(sent[None])}
+    def place(self, positions: np.ndarray, copy: int = 0) -> None:
+        """Put copy `copy`'s UAVs at rest at `positions` ((M, 3), hovering): a test's or a curriculum's start."""
+        self.fleet.place(copy, positions)
+        self._read()
 
-    def goal(self, j: int) -> np.ndarray:
-        return self._goals[j, self._next_goal[j]]
+    def fly(self, commands: np.ndarray) -> set[tuple[int, int]]:
+        """Send velocity commands ((M, 3) for one copy, or (K, M, 3)), each saturated to its UAV's max speed, for
+        one control step; the (copy, UAV) pairs that began touching something."""
+        commands = np.asarray(commands, dtype=float).reshape(self.copies, len(self.uavs), 3)
+        sent = np.array([[saturate(c, uav.max_speed) for c, uav in zip(row, self.uavs, strict=True)]
+                         for row in commands])
+        touched = {(touch.copy, touch.uav) for touch in self.fleet.control_step(sent)}
+        self._read()
+        return touched
 
-    def next_goal(self, j: int) -> None:
-        self._next_goal[j] = min(self._next_goal[j] + 1, GOALS_PER_EPISODE - 1)
+    def _read(self) -> None:
+        self._positions, self._velocities = self.fleet.positions(), self.fleet.velocities()
 
-    def distance(self, j: int) -> float:
-        return float(np.linalg.norm(self.fleet.positions()[0, j] - self.goal(j)))
+    def goal(self, j: int, copy: int = 0) -> np.ndarray:
+        return self._goals[copy, j, self._next_goal[copy, j]]
 
-    def view(self, j: int) -> WorldView:
-        """UAV j's WorldView: every UAV's true state and the obstacles as the NAI has them."""
-        positions, velocities = self.fleet.positions()[0], self.fleet.velocities()[0]
+    def next_goal(self, j: int, copy: int = 0) -> None:
+        self._next_goal[copy, j] = min(self._next_goal[copy, j] + 1, GOALS_PER_EPISODE - 1)
+
+    def distance(self, j: int, copy: int = 0) -> float:
+        return float(np.linalg.norm(self._positions[copy, j] - self.goal(j, copy)))
+
+    def view(self, j: int, copy: int = 0) -> WorldView:
+        """UAV j's WorldView in copy `copy`: every UAV's true state and the obstacles as the NAI has them."""
+        positions, velocities = self._positions[copy], self._velocities[copy]
         view = WorldView(j + 1, self.scenario.boundaries)
         for k, uav in enumerate(self.uavs):
             view.update_agent(AgentState(k + 1, positions[k], velocity=velocities[k],
@@ -69,15 +84,15 @@ class Swarm:
         view.set_obstacles(self.scenario.obstacles)
         return view
 
-    def gap(self, j: int) -> float:
+    def gap(self, j: int, copy: int = 0) -> float:
         """m from UAV j's safety sphere to the nearest other UAV's or obstacle's; inf when there is none."""
-        view = self.view(j)
+        view = self.view(j, copy)
         gaps = [gap for _, gap in view.nearest_agents(1)] + [gap for _, gap in view.nearest_obstacles(1)]
         return min(gaps) if gaps else float("inf")
 
-    def observation(self, j: int) -> np.ndarray:
-        vector = build_inputs(self.view(j), Goal(self.goal(j)), ROLE, self.n_neighbors, self.n_obstacles,
-                              self.neighbor_dist)
+    def observation(self, j: int, copy: int = 0) -> np.ndarray:
+        vector = build_inputs(self.view(j, copy), Goal(self.goal(j, copy)), ROLE, self.n_neighbors,
+                              self.n_obstacles, self.neighbor_dist)
         return vector.astype(np.float32)
 
     def orca(self, j: int) -> NavigationInterface:

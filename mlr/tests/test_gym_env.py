@@ -59,7 +59,7 @@ def test_the_observation_is_the_nais_path_vector(env):
 def test_flying_into_a_sphere_ends_the_episode_with_the_collision_penalty(env, central):
     env.reset(seed=5)
     sphere = central.solids[0]
-    env.swarm.fleet.place(0, np.array([sphere.position - [1.2, 0.0, 0.0], [6.0, 6.0, 3.0]]))
+    env.swarm.place(np.array([sphere.position - [1.2, 0.0, 0.0], [6.0, 6.0, 3.0]]))
     for _ in range(40):
         _, reward, terminated, truncated, info = env.step(np.array([2.0, 0.0, 0.0], dtype=np.float32))
         assert reward == pytest.approx(sum(info["reward_terms"].values()))

@@ -48,7 +48,7 @@ def test_agents_are_the_missions_uavs_and_a_seed_repeats_their_episode(env):
 
 def test_two_uavs_flying_into_each_other_both_end_and_leave_the_agent_list(env):
     env.reset(seed=1)
-    env.swarm.fleet.place(0, np.array([[-1.5, 6.0, 3.0], [1.5, 6.0, 3.0]]))  # head on, clear of the spheres
+    env.swarm.place(np.array([[-1.5, 6.0, 3.0], [1.5, 6.0, 3.0]]))  # head on, clear of the spheres
     actions = {"uav_1": np.array([2.0, 0.0, 0.0], dtype=np.float32),
                "uav_2": np.array([-2.0, 0.0, 0.0], dtype=np.float32)}
     for _ in range(20):

@@ -1,0 +1,88 @@
+"""mlr.gym.vector.SwarmVecEnv: every UAV of K copies as a sub-environment of a stable-baselines3 VecEnv."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from stable_baselines3.common.vec_env import VecMonitor
+
+from mlr.gym.scenario import load_scenario
+from mlr.gym.vector import SwarmVecEnv
+from tests.support import CORPUS
+
+
+@pytest.fixture(scope="module")
+def central():
+    return load_scenario("Gym/1Obs_Central_Cylinder", "Gym/2UAVs_2paths_Central_Cylinder", [CORPUS])
+
+
+@pytest.fixture
+def venv(central):
+    made = SwarmVecEnv(central, copies=3, max_steps=30)
+    yield made
+    made.close()
+
+
+def test_sub_environments_are_the_uavs_of_every_copy(venv):
+    assert venv.num_envs == 6
+    observations = venv.reset()
+    assert observations.shape == (6, venv.observation_space.shape[0]) and observations.dtype == np.float32
+    # UAV 2 sits 5 m along +x of UAV 1 in every copy, whatever the copy's offset in the world
+    for c in range(3):
+        np.testing.assert_allclose(observations[2 * c, 6:9], [5.0, 0.0, 0.0], atol=1e-5)  # others_pos_rel[0]
+
+
+def test_a_seed_repeats_the_goals_of_every_copy(venv):
+    def goals(seed):
+        venv.seed(seed)
+        venv.reset()
+        return np.array([venv.swarm.goal(j, c) for c in range(3) for j in range(2)])
+
+    first, again, other = goals(7), goals(7), goals(8)
+    np.testing.assert_array_equal(first, again)
+    assert not np.array_equal(first, other)
+    assert len({tuple(g) for g in first[::2]}) == 3  # the copies differ from each other
+
+
+def test_a_touch_ends_the_episodes_of_that_copy_only(venv, central):
+    venv.reset()
+    sphere = central.solids[0]
+    venv.swarm.place(np.array([sphere.position - [1.2, 0.0, 0.0], [6.0, 6.0, 3.0]]), copy=1)
+    actions = np.zeros((6, 3))
+    actions[2] = [2.0, 0.0, 0.0]  # copy 1, UAV 1: into the sphere
+    for _ in range(20):
+        observations, rewards, dones, infos = venv.step(actions)
+        if dones.any():
+            break
+    assert dones.tolist() == [False, False, True, True, False, False]
+    assert infos[2]["collided"] and not infos[2]["TimeLimit.truncated"]
+    assert infos[3]["TimeLimit.truncated"] and not infos[3]["collided"]  # cut short by the other's crash
+    assert rewards[2] < -venv.weights.collision_penalty / 2
+    assert "terminal_observation" in infos[2] and "terminal_observation" not in infos[0]
+    # copy 1 started again: UAV 1 hovers at its take-off point, 5 m from UAV 2
+    np.testing.assert_allclose(observations[2, 6:9], [5.0, 0.0, 0.0], atol=1e-5)
+
+
+def test_reaching_a_goal_ends_the_episode_and_the_uav_flies_on_to_the_next(venv):
+    venv.reset()
+    goal = venv.swarm.goal(0, 0).copy()
+    venv.swarm.place(np.array([goal - [0.6, 0.0, 0.0], goal + [4.0, 4.0, 0.0]]), copy=0)
+    actions = np.zeros((6, 3))
+    actions[0] = [1.0, 0.0, 0.0]
+    for _ in range(10):
+        _, rewards, dones, infos = venv.step(actions)
+        if dones[0]:
+            break
+    assert dones[0] and infos[0]["reached"] and not infos[0]["TimeLimit.truncated"]
+    assert rewards[0] > venv.weights.goal_bonus / 2
+    assert not dones[1]  # the other UAV of the copy flies on
+    assert not np.array_equal(venv.swarm.goal(0, 0), goal)
+
+
+def test_episodes_are_truncated_after_max_steps_and_vecmonitor_counts_them(venv):
+    monitored = VecMonitor(venv)
+    monitored.reset()
+    for step in range(1, 31):
+        _, _, dones, infos = monitored.step(np.zeros((6, 3)))  # all hover
+        assert dones.any() == (step == 30)
+    assert dones.all() and all(info["TimeLimit.truncated"] for info in infos)
+    assert all(info["episode"]["l"] == 30 for info in infos)
