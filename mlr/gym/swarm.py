@@ -96,7 +96,10 @@ class Swarm:
         return vector.astype(np.float32)
 
     def orca(self, j: int) -> NavigationInterface:
-        """An ORCA-3D NAI for UAV j with the mission's parameters (the UAVs no policy flies)."""
-        nav = NavigationInterface(self.uavs[j].max_speed, self.uavs[j].safety_radius)
+        """An ORCA-3D NAI for UAV j with the mission's parameters (the UAVs no policy flies). The numpy reference
+        solves it: the native solver is a ROS service, and the gym runs without ROS."""
+        from magna_uav.nai.orca import ReferenceSolver
+
+        nav = NavigationInterface(self.uavs[j].max_speed, self.uavs[j].safety_radius, solver=ReferenceSolver())
         nav.control("orca3d", "set", *self.scenario.orca_params)
         return nav
