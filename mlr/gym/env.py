@@ -3,7 +3,8 @@
 The learning UAV is the scenario's first; the others fly ORCA-3D (the NAI, with the mission's
 parameters) to goals of their own, as in the thesis's missions. An episode starts with every UAV
 hovering where the mission's take-off leaves it and ends when the learner reaches its goal
-(terminated), touches anything (terminated) or has flown `max_steps` control steps (truncated).
+(terminated), collides (terminated; a collision as the UAV manager counts it, mlr.gym.swarm) or has
+flown `max_steps` control steps (truncated).
 
 - Observation: the NAI's input vector for the path role (magna_uav.nai.inputs, the one the supervised
   networks take), float32: own velocity, the goal relative to the UAV, the nearest `n_neighbors` UAVs'
@@ -63,12 +64,12 @@ class MagnaNavEnv(gym.Env):
         commands[LEARNER] = command
         for j, nav in self._others.items():
             commands[j] = nav.velocity(swarm.view(j), Goal(swarm.goal(j))).velocity
-        touched = swarm.fly(commands)
+        collisions = swarm.fly(commands)
         self._steps += 1
         for j in self._others:  # the others go on to their next goal
             if swarm.distance(j) <= self.weights.goal_radius:
                 swarm.next_goal(j)
-        collided = (0, LEARNER) in touched
+        collided = (0, LEARNER) in collisions
         after = swarm.distance(LEARNER)
         terms = reward_terms(StepOutcome(before, after, swarm.gap(LEARNER), collided, command, self._previous_command,
                                          self.max_speed), self.weights)

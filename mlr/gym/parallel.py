@@ -2,7 +2,7 @@
 
 The agents are the scenario's UAVs, named "uav_<id>" as MAGNA names them. Each has the observation,
 action and reward of the single-agent environment (env.py). An agent is done when it reaches its goal
-or touches anything (terminated); the UAV then hovers where it is and stays in the others' way. All
+or collides (terminated, as mlr.gym.swarm counts it); the UAV then hovers where it is and stays in the others' way. All
 are truncated after `max_steps` control steps. A shared policy for every UAV is the usual use.
 """
 from __future__ import annotations
@@ -67,12 +67,12 @@ class MagnaNavParallelEnv(ParallelEnv):
             limit = self.scenario.uavs[j].max_speed
             commands[j] = saturate(np.clip(np.asarray(actions[name], dtype=float).reshape(3), -limit, limit), limit)
         before = {name: swarm.distance(self._index[name]) for name in self.agents}
-        touched = swarm.fly(commands)
+        collisions = swarm.fly(commands)
         self._steps += 1
         observations, rewards, terminations, truncations, infos = {}, {}, {}, {}, {}
         for name in self.agents:
             j = self._index[name]
-            collided, after = (0, j) in touched, swarm.distance(j)
+            collided, after = (0, j) in collisions, swarm.distance(j)
             terms = reward_terms(StepOutcome(before[name], after, swarm.gap(j), collided, commands[j],
                                              self._previous[j], self.scenario.uavs[j].max_speed), self.weights)
             reached = after <= self.weights.goal_radius and not collided

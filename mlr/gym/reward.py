@@ -2,9 +2,9 @@
 
     progress   + progress_weight * (distance to goal before the step - after), in metres
     goal       + goal_bonus when the UAV comes within goal_radius of its goal
-    collision  - collision_penalty when it touches another UAV, an obstacle or the ground (its episode ends)
+    collision  - collision_penalty when it collides, as the UAV manager counts it (mlr.gym.swarm); its episode ends
     near_miss  - near_miss_weight * (1 - gap / near_miss_distance) while the gap to the nearest UAV or
-                 obstacle surface, beyond both safety radii, is below near_miss_distance (all of it when touching)
+                 obstacle surface, beyond both safety radii, is below near_miss_distance (all of it on a collision)
     smoothness - smoothness_weight * |command - previous command|^2 / max_speed^2
     time       - time_penalty every step, so that hovering never pays
 

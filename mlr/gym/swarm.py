@@ -3,7 +3,7 @@
 `Swarm` places a copy's UAVs where the mission's take-off leaves them, draws every UAV's goals from
 the mission's path definitions for an episode's seed, sends one control step of velocity commands to
 every copy, and answers per UAV (copy c, UAV j): the NAI's input vector, the distance to its goal, the
-gap to the nearest UAV or obstacle, whether it touched anything. The single-agent environment (env.py)
+gap to the nearest UAV or obstacle, whether it collided. The single-agent environment (env.py)
 and the PettingZoo one (parallel.py) fly one copy; the vectorised one (vector.py) flies many.
 """
 from __future__ import annotations
@@ -35,6 +35,7 @@ class Swarm:
         self._next_goal = np.zeros((copies, len(self.uavs)), dtype=int)
         self._positions = self.fleet.positions()  # (K, M, 3), read once per control step
         self._velocities = self.fleet.velocities()
+        self._views: dict[tuple[int, int], WorldView] = {}  # built at most once per control step
 
     def close(self) -> None:
         self.fleet.close()
@@ -54,16 +55,23 @@ class Swarm:
 
     def fly(self, commands: np.ndarray) -> set[tuple[int, int]]:
         """Send velocity commands ((M, 3) for one copy, or (K, M, 3)), each saturated to its UAV's max speed, for
-        one control step; the (copy, UAV) pairs that began touching something."""
+        one control step; the (copy, UAV) pairs that collided in it.
+
+        A collision is what the UAV manager's evaluator counts in a `magna run` mission: at the end of the
+        control step the UAV's safety sphere overlaps another UAV's or an obstacle's (a gap below zero). A
+        physical touch in the simulator (the ground, or bodies meeting between two control steps) counts too.
+        Training on bare physical contact would teach a policy to pass closer than the stack allows."""
         commands = np.asarray(commands, dtype=float).reshape(self.copies, len(self.uavs), 3)
         sent = np.array([[saturate(c, uav.max_speed) for c, uav in zip(row, self.uavs, strict=True)]
                          for row in commands])
-        touched = {(touch.copy, touch.uav) for touch in self.fleet.control_step(sent)}
+        collided = {(touch.copy, touch.uav) for touch in self.fleet.control_step(sent)}
         self._read()
-        return touched
+        collided |= {(c, j) for c in range(self.copies) for j in range(len(self.uavs)) if self.gap(j, c) < 0.0}
+        return collided
 
     def _read(self) -> None:
         self._positions, self._velocities = self.fleet.positions(), self.fleet.velocities()
+        self._views.clear()
 
     def goal(self, j: int, copy: int = 0) -> np.ndarray:
         return self._goals[copy, j, self._next_goal[copy, j]]
@@ -76,12 +84,15 @@ class Swarm:
 
     def view(self, j: int, copy: int = 0) -> WorldView:
         """UAV j's WorldView in copy `copy`: every UAV's true state and the obstacles as the NAI has them."""
-        positions, velocities = self._positions[copy], self._velocities[copy]
-        view = WorldView(j + 1, self.scenario.boundaries)
-        for k, uav in enumerate(self.uavs):
-            view.update_agent(AgentState(k + 1, positions[k], velocity=velocities[k],
-                                         safety_radius=uav.safety_radius))
-        view.set_obstacles(self.scenario.obstacles)
+        view = self._views.get((copy, j))
+        if view is None:
+            positions, velocities = self._positions[copy], self._velocities[copy]
+            view = WorldView(j + 1, self.scenario.boundaries)
+            for k, uav in enumerate(self.uavs):
+                view.update_agent(AgentState(k + 1, positions[k], velocity=velocities[k],
+                                             safety_radius=uav.safety_radius))
+            view.set_obstacles(self.scenario.obstacles)
+            self._views[(copy, j)] = view
         return view
 
     def gap(self, j: int, copy: int = 0) -> float:

@@ -6,7 +6,7 @@ i // M, M being the scenario's UAV count. Observation, action and reward are Mag
 
 Episodes, per sub-environment:
 - a UAV that reaches its goal ends its episode (terminated) and flies on to its next goal;
-- a touch ends the episode of every UAV of that copy: terminated for those that touched, truncated
+- a collision (mlr.gym.swarm) ends the episode of every UAV of that copy: terminated for those that collided, truncated
   for the others (their episode was cut, not finished), and the copy starts again;
 - after `max_steps` control steps the copy's episodes are truncated and it starts again.
 Ended episodes give SB3's `terminal_observation` and `TimeLimit.truncated` in their info.
@@ -61,17 +61,17 @@ class SwarmVecEnv(VecEnv):
         clipped = np.clip(self._actions, -self.max_speed, self.max_speed)
         commands = np.array([saturate(a, self.max_speed) for a in clipped]).reshape(self.copies, m, 3)
         before = np.array([[swarm.distance(j, c) for j in range(m)] for c in range(self.copies)])
-        touched = swarm.fly(commands)
+        collisions = swarm.fly(commands)
         self._steps += 1
         rewards = np.zeros(self.num_envs, dtype=np.float32)
         dones = np.zeros(self.num_envs, dtype=bool)
         infos: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]
         restart = []
         for c in range(self.copies):
-            crashed = any((c, j) in touched for j in range(m))
+            crashed = any((c, j) in collisions for j in range(m))
             out_of_time = self._steps[c] >= self.max_steps
             for j in range(m):
-                i, collided, after = c * m + j, (c, j) in touched, swarm.distance(j, c)
+                i, collided, after = c * m + j, (c, j) in collisions, swarm.distance(j, c)
                 terms = reward_terms(StepOutcome(before[c, j], after, swarm.gap(j, c), collided, commands[c, j],
                                                  self._previous[c, j], self.max_speed), self.weights)
                 rewards[i] = sum(terms.values())

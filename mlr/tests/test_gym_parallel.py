@@ -1,6 +1,8 @@
 """mlr.gym.parallel.MagnaNavParallelEnv: PettingZoo's API test, seeding, and agents that end on their own."""
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from pettingzoo.test import parallel_api_test
@@ -59,3 +61,29 @@ def test_two_uavs_flying_into_each_other_both_end_and_leave_the_agent_list(env):
     assert all(infos[name]["collided"] for name in ("uav_1", "uav_2"))
     assert all(rewards[name] < -env.weights.collision_penalty / 2 for name in ("uav_1", "uav_2"))
     assert env.agents == []
+
+
+
+def test_overlapping_safety_spheres_collide_as_the_uav_managers_evaluator_counts_it(central):
+    # An airframe whose safety sphere (0.6 m) is wider than its body: at 1.0 m apart the bodies are clear
+    # of each other, the safety spheres are not, and the stack's evaluator would count a collision.
+    wide = tuple(dataclasses.replace(uav, airframe=dataclasses.replace(uav.airframe, safety_radius=0.6))
+                 for uav in central.uavs)
+    env = MagnaNavParallelEnv(scenario=dataclasses.replace(central, uavs=wide), max_steps=40)
+    try:
+        hover = np.zeros((1, 2, 3))
+        env.reset(seed=1)
+        env.swarm.place(np.array([[0.0, 6.0, 3.0], [1.0, 6.0, 3.0]]))
+        assert not env.swarm.fleet.control_step(hover)  # no physical contact in the simulator
+        env.swarm.place(np.array([[0.0, 6.0, 3.0], [1.0, 6.0, 3.0]]))
+        _, _, terminations, _, infos = env.step({name: hover[0, 0] for name in env.agents})
+        assert terminations == {"uav_1": True, "uav_2": True}
+        assert all(infos[name]["collided"] and infos[name]["reward_terms"]["collision"] < 0 for name in infos)
+
+        env.reset(seed=1)
+        env.swarm.place(np.array([[0.0, 6.0, 3.0], [1.3, 6.0, 3.0]]))  # a 0.1 m gap: inside the near-miss margin
+        _, _, terminations, _, infos = env.step({name: hover[0, 0] for name in env.agents})
+        assert terminations == {"uav_1": False, "uav_2": False}
+        assert all(infos[name]["reward_terms"]["near_miss"] < 0 for name in infos)
+    finally:
+        env.close()
