@@ -7,7 +7,9 @@ settings and PPO's. The run writes into its output folder:
   command resumes from the latest one after an interruption;
 - `policy.zip`, `vecnormalize.pkl`: the final model and observation statistics;
 - `policy.pt` and `policy.json`: the policy exported for the NAI (mlr.gym.export);
-- `rl.json`: the config, steps, wall time and the mean return of the first and last episodes.
+- `rl.json`: the config, steps, wall time, the mean return of the first and last episodes, and the
+  success rate (mlr.gym.evaluate: whole missions flown deterministically in the gym) at every checkpoint
+  and at the end, with the training wall time it was reached at; TensorBoard has it as eval/success_rate.
 """
 from __future__ import annotations
 
@@ -46,9 +48,11 @@ KEYS: dict[str, tuple[Any, str]] = {
     "threads": (1, "torch threads, >= 1"),
     "ppo": ({}, "stable-baselines3 PPO keyword arguments, e.g. {n_steps: 256, batch_size: 1024}"),
     "reward": ({}, "RewardWeights fields to change, e.g. {collision_penalty: 20}"),
+    "eval_flights": (32, "whole missions flown to measure the success rate at each checkpoint, >= 1"),
 }
 WHOLE_RANGES = {"copies": (1, 64), "n_neighbors": (0, 10), "n_obstacles": (0, 10), "max_steps": (1, None),
-                "total_steps": (1, None), "checkpoint_every": (1, None), "seed": (None, None), "threads": (1, None)}
+                "total_steps": (1, None), "checkpoint_every": (1, None), "seed": (None, None), "threads": (1, None),
+                "eval_flights": (1, None)}
 DEFAULT_PPO = {"n_steps": 256, "batch_size": 1024}
 
 
@@ -72,6 +76,7 @@ class RlConfig:
     threads: int
     ppo: dict
     reward: dict
+    eval_flights: int
 
     @property
     def name(self) -> str:
@@ -114,7 +119,7 @@ def load_config(path: str | Path) -> RlConfig:
     return RlConfig(path, values["world"], values["mission"], values["copies"], values["n_neighbors"],
                     values["n_obstacles"], float(dist), values["max_steps"], values["total_steps"],
                     values["checkpoint_every"], values["seed"], values["threads"],
-                    {**DEFAULT_PPO, **values["ppo"]}, dict(values["reward"]))
+                    {**DEFAULT_PPO, **values["ppo"]}, dict(values["reward"]), values["eval_flights"])
 
 
 def latest_checkpoint(folder: Path) -> tuple[int, Path, Path] | None:
@@ -136,7 +141,8 @@ def train(config: RlConfig, out: Path, search_path: list[Path], progress: bool =
     from stable_baselines3.common.callbacks import BaseCallback
     from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
 
-    from mlr.gym.export import export_policy
+    from mlr.gym.evaluate import evaluate
+    from mlr.gym.export import export_policy, policy_module
     from mlr.gym.reward import RewardWeights
     from mlr.gym.scenario import load_scenario
     from mlr.gym.vector import SwarmVecEnv
@@ -157,6 +163,26 @@ def train(config: RlConfig, out: Path, search_path: list[Path], progress: bool =
         model = PPO("MlpPolicy", venv, seed=config.seed, device="cpu", tensorboard_log=str(out / "tensorboard"),
                     **config.ppo)
     returns: list[float] = []
+    history: list[dict] = []  # the success rate at each checkpoint
+    started = time.monotonic()
+    earlier = [e for e in _earlier_history(out) if resumed is not None and e["steps"] <= resumed[0]]
+
+    def success(steps: int) -> dict:
+        module = policy_module(model, venv)
+
+        def policy(inputs):
+            with torch.no_grad():
+                return module(torch.as_tensor(inputs, dtype=torch.float32)).numpy()
+
+        found = evaluate(policy, scenario, config.eval_flights, n_neighbors=config.n_neighbors,
+                         n_obstacles=config.n_obstacles, neighbor_dist=config.neighbor_dist,
+                         goal_radius=weights.goal_radius)
+        wall = (earlier[-1]["wall_seconds"] if earlier else 0.0) + time.monotonic() - started
+        entry = {"steps": steps, "wall_seconds": wall, **found.as_dict()}
+        history.append(entry)
+        model.logger.record("eval/success_rate", found.success_rate)
+        model.logger.record("eval/min_gap", found.min_gap)
+        return entry
 
     class Progress(BaseCallback):
         """Checkpoints, episode returns, and a progress bar (tqdm) over the agent-steps."""
@@ -180,15 +206,20 @@ def train(config: RlConfig, out: Path, search_path: list[Path], progress: bool =
             # statistics first: a model without them is not a checkpoint (latest_checkpoint)
             venv.save(str(checkpoints / f"vecnormalize_{steps}.pkl"))
             model.save(str(checkpoints / f"ppo_{steps}.zip"))
+            entry = success(steps)
+            self.bar.set_postfix(success=f"{entry['succeeded']}/{entry['flights']}")
+            _write_history(out, earlier + history)
 
         def _on_training_end(self) -> None:
             self.bar.close()
 
-    started = time.monotonic()
     left = config.total_steps - model.num_timesteps
     if left > 0:
         model.learn(left, callback=Progress(), reset_num_timesteps=resumed is None, tb_log_name="ppo")
     wall = time.monotonic() - started
+    final = success(int(model.num_timesteps)) if not history or history[-1]["steps"] != model.num_timesteps \
+        else history[-1]
+    _write_history(out, earlier + history)
     model.save(str(out / "policy.zip"))
     venv.save(str(out / "vecnormalize.pkl"))
     export_policy(model, out / "policy.pt", config.n_neighbors, config.n_obstacles, config.neighbor_dist,
@@ -198,10 +229,21 @@ def train(config: RlConfig, out: Path, search_path: list[Path], progress: bool =
     numbers = {"config": config.as_json(), "steps": int(model.num_timesteps), "wall_seconds": wall,
                "resumed_from": resumed[0] if resumed else None, "episodes": len(returns),
                "first_mean_return": float(np.mean(returns[:window])) if returns else None,
-               "last_mean_return": float(np.mean(returns[-window:])) if returns else None}
+               "last_mean_return": float(np.mean(returns[-window:])) if returns else None,
+               "success_rate": final["success_rate"], "evaluation": final, "history": earlier + history}
     write_text_atomically(out / "rl.json", json.dumps(numbers, indent=2) + "\n", overwrite=True)
     venv.close()
     return numbers
+
+
+def _earlier_history(out: Path) -> list[dict]:
+    """The success rates an interrupted run measured before the checkpoint it resumes from."""
+    record = out / "history.json"
+    return json.loads(record.read_text()) if record.is_file() else []
+
+
+def _write_history(out: Path, history: list[dict]) -> None:
+    write_text_atomically(out / "history.json", json.dumps(history, indent=2) + "\n", overwrite=True)
 
 
 def prepare_output(config: RlConfig, out: Path, force: bool) -> None:
@@ -220,6 +262,7 @@ def prepare_output(config: RlConfig, out: Path, force: bool) -> None:
         if theirs != mine:
             for name in ("checkpoints", "tensorboard"):
                 shutil.rmtree(out / name, ignore_errors=True)
+            (out / "history.json").unlink(missing_ok=True)
     out.mkdir(parents=True, exist_ok=True)
     write_text_atomically(record, json.dumps(mine, indent=2) + "\n", overwrite=True)
 
@@ -258,5 +301,8 @@ def run(args) -> int:
         return 130
     print(f"rl: {numbers['steps']} steps in {numbers['wall_seconds'] / 60:.1f} min; mean return "
           f"{numbers['first_mean_return']} (first episodes) -> {numbers['last_mean_return']} (last)")
+    final = numbers["evaluation"]
+    print(f"rl: success rate {final['succeeded']}/{final['flights']} whole missions flown in the gym "
+          f"({final['success_rate']:.0%}), minimum gap {final['min_gap']:.2f} m")
     print(f"rl: {out / 'policy.pt'}, {out / 'rl.json'}, TensorBoard: magna learn board {out / 'tensorboard'}")
     return 0

@@ -46,27 +46,37 @@ def test_config_errors_name_the_file_and_the_key(tmp_path, text, message):
 def test_a_short_run_improves_its_return_and_exports_a_policy_the_nai_loads(tmp_path):
     from magna_uav.nai.neural import load_model
 
-    config = quick(total_steps=40_000, checkpoint_every=100_000)
+    config = quick(total_steps=40_000, checkpoint_every=100_000, eval_flights=8)
     numbers = train(config, tmp_path / "run", [CORPUS], progress=False)
     assert numbers["episodes"] > 50
     assert numbers["last_mean_return"] > numbers["first_mean_return"] + 10.0  # about -22 -> +1 on this seed
     policy = load_model(tmp_path / "run" / "policy.pt")
     assert policy.spec.role == "path" and policy.spec.n_obstacles == 0
-    assert json.loads((tmp_path / "run" / "rl.json").read_text())["steps"] == numbers["steps"]
+    written = json.loads((tmp_path / "run" / "rl.json").read_text())
+    assert written["steps"] == numbers["steps"]
+    final = written["evaluation"]  # whole missions flown in the gym by the final policy
+    assert final["steps"] == numbers["steps"] and final["flights"] == config.eval_flights
+    assert final["succeeded"] + final["collided"] + final["timed_out"] == final["flights"]
+    assert written["success_rate"] == final["succeeded"] / final["flights"] and written["history"] == [final]
     assert any((tmp_path / "run" / "tensorboard").rglob("events.out.tfevents.*"))
 
 
 def test_a_run_goes_on_from_its_latest_checkpoint_and_refuses_another_configs_folder(tmp_path):
     out = tmp_path / "run"
-    first = quick(total_steps=8192, checkpoint_every=4096, copies=2)
+    first = quick(total_steps=8192, checkpoint_every=4096, copies=2, eval_flights=2)
     prepare_output(first, out, force=False)
     train(first, out, [CORPUS], progress=False)
     assert latest_checkpoint(out / "checkpoints")[0] == 8192
-    longer = quick(total_steps=12288, checkpoint_every=4096, copies=2)
+    longer = quick(total_steps=12288, checkpoint_every=4096, copies=2, eval_flights=2)
     prepare_output(longer, out, force=False)  # only total_steps differs: the same run, going on
     numbers = train(longer, out, [CORPUS], progress=False)
     assert numbers["resumed_from"] == 8192 and numbers["steps"] == 12288
-    other = quick(total_steps=8192, checkpoint_every=4096, copies=3)
+    # the success rate at each checkpoint, with the training time it took, across the interruption
+    history = numbers["history"]
+    assert [entry["steps"] for entry in history] == [4096, 8192, 12288]
+    assert history[0]["wall_seconds"] < history[1]["wall_seconds"] < history[2]["wall_seconds"]
+    assert json.loads((out / "history.json").read_text()) == history
+    other = quick(total_steps=8192, checkpoint_every=4096, copies=3, eval_flights=2)
     with pytest.raises(RlError, match="differs in copies.*--force"):
         prepare_output(other, out, force=False)
     prepare_output(other, out, force=True)
