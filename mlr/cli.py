@@ -278,11 +278,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_force(exp, old=("--overwrite",), help="replace the .pt and .json files if they exist")
     exp.set_defaults(_mlr_run=cmd_export)
 
-    from mlr import dagger, fly, thesis
+    from mlr import compare, dagger, fly, thesis
 
     fly_parser = sub.add_parser("fly", help=fly.HELP, description=fly.HELP)
     fly.add_arguments(fly_parser)
     fly_parser.set_defaults(_mlr_run=fly.run)
+
+    compare_parser = sub.add_parser("compare", help=compare.HELP, description=compare.HELP)
+    compare.add_arguments(compare_parser)
+    compare_parser.set_defaults(_mlr_run=compare.run)
 
     thesis_parser = sub.add_parser("thesis", help=thesis.HELP, description=thesis.DESCRIPTION,
                                    epilog=thesis.EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -310,7 +314,7 @@ def run(args) -> int:
     command = getattr(args, "_mlr_run", None)
     try:
         if command is None:
-            raise CliError("give a command: train, pickle, board, export, fly, thesis, dagger or rl "
+            raise CliError("give a command: train, pickle, board, export, fly, compare, thesis, dagger or rl "
                            "(--help lists them)")
         return int(command(args) or 0)
     except (CliError, ConfigError, PicklerError, FileExistsError, OutputExists, UserError) as err:

@@ -94,6 +94,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="rewrite simulations 1..N of existing datasets and a different network mission")
     parser.add_argument("--skip-orca", action="store_true",
                         help="fly only the network; compare with the ORCA-3D dataset NAME_orca already there")
+    parser.add_argument("--orca-name", metavar="NAME",
+                        help="the ORCA-3D dataset's name (default NAME_orca); with --skip-orca, compare another "
+                             "network with the ORCA-3D batch of an earlier fly")
 
 
 def repo_root() -> Path:
@@ -142,6 +145,7 @@ class FlyRequest:
     skip_orca: bool = False
     fallback: bool = False
     teacher_agent_radius: float | None = None
+    orca_name: str | None = None  # the ORCA-3D dataset's NAME (default NAME_orca): several networks, one ORCA batch
 
     @classmethod
     def from_args(cls, args: argparse.Namespace) -> FlyRequest:
@@ -165,7 +169,7 @@ def prepare(request: FlyRequest) -> FlyPlan:
     if request.n_iter < 1:
         raise FlyError(f"--n-iter must be >= 1, got {request.n_iter}")
     rtf = parse_rtf(request.rtf)
-    orca_name, nn_name = f"{request.name}_orca", f"{request.name}_nn"
+    orca_name, nn_name = request.orca_name or f"{request.name}_orca", f"{request.name}_nn"
     for value in (orca_name, nn_name):
         check_component(value, "--name")
     magna = repo_root() / "magna"
@@ -290,14 +294,14 @@ def _stop(process: subprocess.Popen, wait: float) -> None:
             continue
 
 
-def fly(plan: FlyPlan) -> int:
-    """Run the batches of `plan`, then compare them; the exit status (module doc)."""
+def fly_batches(plan: FlyPlan) -> int:
+    """Run the batches of `plan`: 0 when all ran, 1 when a simulation failed, else the status to stop with."""
     for change in plan.changes:
         print(f"fly: network mission {plan.variant}: {change}", flush=True)
     codes = []
     for label, argv in (("ORCA-3D", plan.orca_argv), ("network", plan.nn_argv)):
         if argv is None:
-            print(f"fly: {label}: reusing {plan.orca_dataset} (--skip-orca)", flush=True)
+            print(f"fly: {label}: reusing {plan.orca_dataset}", flush=True)
             continue
         print(f"fly: {label} batch: {' '.join(argv)}", flush=True)
         code, interrupted = run_batch(argv)
@@ -309,12 +313,20 @@ def fly(plan: FlyPlan) -> int:
                   file=sys.stderr)
             return code
         codes.append(code)
+    return 1 if any(codes) else 0
+
+
+def fly(plan: FlyPlan) -> int:
+    """Run the batches of `plan`, then compare them; the exit status (module doc)."""
+    status = fly_batches(plan)
+    if status not in (0, 1):
+        return status
     comparison = Comparison(read_batch(plan.orca_dataset, "ORCA-3D"), read_batch(plan.nn_dataset, "network"),
                             plan.world, plan.mission, str(plan.model), [str(c) for c in plan.changes])
     files = write_comparison(comparison, plan.out)
     print(comparison.markdown(), flush=True)
     print("fly: " + ", ".join(str(f) for f in files), flush=True)
-    return 1 if any(codes) else 0
+    return status
 
 
 def run(args) -> int:
