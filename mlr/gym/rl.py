@@ -48,6 +48,7 @@ KEYS: dict[str, tuple[Any, str]] = {
     "threads": (1, "torch threads, >= 1"),
     "ppo": ({}, "stable-baselines3 PPO keyword arguments, e.g. {n_steps: 256, batch_size: 1024}"),
     "reward": ({}, "RewardWeights fields to change, e.g. {collision_penalty: 20}"),
+    "encounters": (0.0, "share of episodes started with two UAVs on a collision course, 0..1 (mlr/gym/README.md)"),
     "eval_flights": (32, "whole missions flown to measure the success rate at each checkpoint, >= 1"),
 }
 WHOLE_RANGES = {"copies": (1, 64), "n_neighbors": (0, 10), "n_obstacles": (0, 10), "max_steps": (1, None),
@@ -77,6 +78,7 @@ class RlConfig:
     ppo: dict
     reward: dict
     eval_flights: int
+    encounters: float
 
     @property
     def name(self) -> str:
@@ -109,6 +111,9 @@ def load_config(path: str | Path) -> RlConfig:
     dist = values["neighbor_dist"]
     if isinstance(dist, bool) or not isinstance(dist, int | float) or not math.isfinite(dist) or dist <= 0:
         raise RlError(f"{path}: neighbor_dist is {dist!r}: give {KEYS['neighbor_dist'][1]}")
+    share = values["encounters"]
+    if isinstance(share, bool) or not isinstance(share, int | float) or not 0.0 <= share <= 1.0:
+        raise RlError(f"{path}: encounters is {share!r}: give {KEYS['encounters'][1]}")
     for key in ("ppo", "reward"):
         if not isinstance(values[key], dict):
             raise RlError(f"{path}: {key} is {values[key]!r}: give {KEYS[key][1]}")
@@ -119,7 +124,8 @@ def load_config(path: str | Path) -> RlConfig:
     return RlConfig(path, values["world"], values["mission"], values["copies"], values["n_neighbors"],
                     values["n_obstacles"], float(dist), values["max_steps"], values["total_steps"],
                     values["checkpoint_every"], values["seed"], values["threads"],
-                    {**DEFAULT_PPO, **values["ppo"]}, dict(values["reward"]), values["eval_flights"])
+                    {**DEFAULT_PPO, **values["ppo"]}, dict(values["reward"]), values["eval_flights"],
+                    float(values["encounters"]))
 
 
 def latest_checkpoint(folder: Path) -> tuple[int, Path, Path] | None:
@@ -151,7 +157,7 @@ def train(config: RlConfig, out: Path, search_path: list[Path], progress: bool =
     scenario = load_scenario(config.world, config.mission, search_path)
     weights = RewardWeights(**config.reward)
     base = SwarmVecEnv(scenario, config.copies, config.n_neighbors, config.n_obstacles, config.neighbor_dist,
-                       config.max_steps, weights, config.seed)
+                       config.max_steps, weights, config.seed, config.encounters)
     checkpoints = out / "checkpoints"
     checkpoints.mkdir(parents=True, exist_ok=True)
     resumed = latest_checkpoint(checkpoints)

@@ -40,13 +40,42 @@ class Swarm:
     def close(self) -> None:
         self.fleet.close()
 
-    def start(self, seed: int, copy: int = 0) -> None:
-        """A new episode of copy `copy`: goals drawn for `seed`, every UAV hovering at its take-off point."""
+    def start(self, seed: int, copy: int = 0, encounter: bool = False) -> None:
+        """A new episode of copy `copy`: goals drawn for `seed`, every UAV hovering at its take-off point; or, with
+        `encounter`, the first two UAVs placed on a collision course (`encounter_starts`) when there is room."""
         for j, uav in enumerate(self.uavs):
             self._goals[copy, j] = self.scenario.goals(uav, seed + j, GOALS_PER_EPISODE)
         self._next_goal[copy] = 0
         lift = np.array([0.0, 0.0, self.scenario.take_off_height])
-        self.place(np.array([uav.start + lift for uav in self.uavs]), copy)
+        starts = np.array([uav.start + lift for uav in self.uavs])
+        if encounter and len(self.uavs) >= 2:
+            starts = self.encounter_starts(starts, self._goals[copy, :, 0], np.random.default_rng(seed))
+        self.place(starts, copy)
+
+    def encounter_starts(self, starts: np.ndarray, goals: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """`starts` with UAVs 0 and 1 moved where, flying straight to their first goals at the same speed, they
+        would meet half-way between the goals (give or take a metre) after 2-4 s: the head-on and crossing
+        encounters a mission holds only now and then, for a curriculum (mlr/gym/README.md). A layout that leaves
+        a UAV outside the world or within a metre of an obstacle or the other's start keeps `starts`."""
+        meet = (goals[0] + goals[1]) / 2.0 + rng.uniform(-1.0, 1.0, 3) * [1.0, 1.0, 0.3]
+        run = rng.uniform(2.0, 4.0) * self.uavs[0].max_speed
+        moved = starts.copy()
+        for j in (0, 1):
+            away = goals[j] - meet
+            length = float(np.linalg.norm(away))
+            if length < 1e-6:
+                return starts
+            moved[j] = meet - away / length * run
+            moved[j, 2] = max(moved[j, 2], 1.0)  # not below 1 m: the course still meets, a little less head-on
+        bounds = self.scenario.boundaries
+        if bounds is not None and np.any((moved[:2] < bounds[:, 0] + 0.5) | (moved[:2] > bounds[:, 1] - 0.5)):
+            return starts
+        if np.linalg.norm(moved[0] - moved[1]) < 1.0 + 2 * self.uavs[0].safety_radius:
+            return starts
+        for obstacle in self.scenario.obstacles:
+            if np.any(np.linalg.norm(moved[:2] - obstacle.position, axis=1) < obstacle.radius + 1.0):
+                return starts
+        return moved
 
     def place(self, positions: np.ndarray, copy: int = 0) -> None:
         """Put copy `copy`'s UAVs at rest at `positions` ((M, 3), hovering): a test's or a curriculum's start."""

@@ -8,7 +8,9 @@ Episodes, per sub-environment:
 - a UAV that reaches its goal ends its episode (terminated) and flies on to its next goal;
 - a collision (mlr.gym.swarm) ends the episode of every UAV of that copy: terminated for those that collided, truncated
   for the others (their episode was cut, not finished), and the copy starts again;
-- after `max_steps` control steps the copy's episodes are truncated and it starts again.
+- after `max_steps` control steps the copy's episodes are truncated and it starts again;
+- a share `encounters` of the copies' starts puts the first two UAVs on a collision course instead of at
+  their take-off points (Swarm.encounter_starts), for a policy to meet often what a mission holds rarely.
 Ended episodes give SB3's `terminal_observation` and `TimeLimit.truncated` in their info.
 """
 from __future__ import annotations
@@ -28,7 +30,10 @@ from mlr.gym.swarm import Swarm
 class SwarmVecEnv(VecEnv):
     def __init__(self, scenario: Scenario, copies: int = 4, n_neighbors: int = 1, n_obstacles: int = 2,
                  neighbor_dist: float = 6.0, max_steps: int = 600, weights: RewardWeights = RewardWeights(),
-                 seed: int = 0):
+                 seed: int = 0, encounters: float = 0.0):
+        if not 0.0 <= encounters <= 1.0:
+            raise ValueError(f"encounters: {encounters!r} is the share of episodes started on a collision course; "
+                             "give a number in 0..1")
         speeds = {uav.max_speed for uav in scenario.uavs}
         if len(speeds) != 1:
             raise ValueError(f"scenario {scenario.mission_name}: its UAVs have max speeds {sorted(speeds)}; one "
@@ -36,7 +41,7 @@ class SwarmVecEnv(VecEnv):
         self.swarm = Swarm(scenario, n_neighbors, n_obstacles, neighbor_dist, copies)
         self.copies, self.uav_count = copies, len(scenario.uavs)
         self.max_speed = speeds.pop()
-        self.max_steps, self.weights = max_steps, weights
+        self.max_steps, self.weights, self.encounters = max_steps, weights, encounters
         observation_space = gym.spaces.Box(-np.inf, np.inf, (self.swarm.observation_size,), np.float32)
         action_space = gym.spaces.Box(-self.max_speed, self.max_speed, (3,), np.float32)
         super().__init__(copies * self.uav_count, observation_space, action_space)
@@ -109,7 +114,9 @@ class SwarmVecEnv(VecEnv):
     def _start(self, copy: int, seed: int | None) -> None:
         if seed is not None:
             self._rngs[copy] = np.random.default_rng(seed)
-        self.swarm.start(int(self._rngs[copy].integers(2 ** 31)), copy)
+        rng = self._rngs[copy]
+        episode_seed = int(rng.integers(2 ** 31))
+        self.swarm.start(episode_seed, copy, encounter=bool(rng.random() < self.encounters))
         self._steps[copy] = 0
         self._previous[copy] = 0.0
 

@@ -86,3 +86,43 @@ def test_episodes_are_truncated_after_max_steps_and_vecmonitor_counts_them(venv)
         assert dones.any() == (step == 30)
     assert dones.all() and all(info["TimeLimit.truncated"] for info in infos)
     assert all(info["episode"]["l"] == 30 for info in infos)
+
+
+
+def test_encounter_starts_put_two_uavs_on_a_collision_course():
+    from magna_uav.nai.inputs import input_names
+    from mlr.gym.swarm import Swarm
+
+    four = load_scenario("Gym/Empty_4_Cylinders", "Gym/2UAVs_2paths_4_Cylinders", [CORPUS])  # UAVs, no obstacle
+    names = input_names("path", 1, 0)
+    goal = [names.index(f"goal_pose_rel.{axis}") for axis in "xyz"]
+    lift = np.array([0.0, 0.0, four.take_off_height])
+    take_off = np.array([uav.start + lift for uav in four.uavs])
+    swarm = Swarm(four, 1, 0)
+
+    def straight_flights(encounter):
+        """(starts moved, collisions) over 12 episodes of both UAVs flying straight to their first goal."""
+        moved = collided = 0
+        for seed in range(12):
+            swarm.start(seed, encounter=encounter)
+            moved += not np.allclose(swarm.fleet.positions()[0], take_off, atol=0.05)
+            for _ in range(60):
+                if swarm.fly(2.0 * np.array([swarm.observation(j)[goal] for j in range(2)])):
+                    collided += 1
+                    break
+                if min(swarm.distance(0), swarm.distance(1)) < 0.5:
+                    break
+        return moved, collided
+
+    try:
+        plain = straight_flights(False)
+        assert plain[0] == 0 and plain[1] <= 2  # from the take-off points, first paths rarely meet
+        moved, collided = straight_flights(True)
+        assert moved >= 10 and collided >= moved - 2  # a start is kept only where there is no room for the course
+    finally:
+        swarm.close()
+
+
+def test_the_share_of_encounters_is_checked():
+    with pytest.raises(ValueError, match="encounters: 1.5 is the share"):
+        SwarmVecEnv(None, encounters=1.5)
