@@ -5,7 +5,9 @@ world, which is how the gym reaches its speed (mlr.gym.fleet). Sub-environment i
 i // M, M being the scenario's UAV count. Observation, action and reward are MagnaNavEnv's.
 
 Episodes, per sub-environment:
-- a UAV that reaches its goal ends its episode (terminated) and flies on to its next goal;
+- a UAV that reaches its goal earns the goal bonus and flies on to its next goal in the same episode, as
+  along a mission's path. (Ending the episode there would hide from the policy a collision just after
+  a goal: the bonus would be its last reward, whatever came next.);
 - a collision (mlr.gym.swarm) ends the episode of every UAV of that copy: terminated for those that collided, truncated
   for the others (their episode was cut, not finished), and the copy starts again;
 - after `max_steps` control steps the copy's episodes are truncated and it starts again;
@@ -82,12 +84,12 @@ class SwarmVecEnv(VecEnv):
                 rewards[i] = sum(terms.values())
                 reached = after <= self.weights.goal_radius and not collided
                 infos[i] = {"reward_terms": terms, "collided": collided, "reached": reached}
-                if reached or crashed or out_of_time:
+                if reached:
+                    swarm.next_goal(j, c)  # flies on, in the same episode, as along a mission's path
+                if crashed or out_of_time:
                     dones[i] = True
                     infos[i]["terminal_observation"] = swarm.observation(j, c)
-                    infos[i]["TimeLimit.truncated"] = not (reached or collided)
-                    if reached and not (crashed or out_of_time):
-                        swarm.next_goal(j, c)  # flies on: its next episode starts here
+                    infos[i]["TimeLimit.truncated"] = not collided
             self._previous[c] = commands[c]
             if crashed or out_of_time:
                 restart.append(c)

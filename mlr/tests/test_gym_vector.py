@@ -62,7 +62,7 @@ def test_a_touch_ends_the_episodes_of_that_copy_only(venv, central):
     np.testing.assert_allclose(observations[2, 6:9], [5.0, 0.0, 0.0], atol=1e-5)
 
 
-def test_reaching_a_goal_ends_the_episode_and_the_uav_flies_on_to_the_next(venv):
+def test_reaching_a_goal_pays_the_bonus_and_the_uav_flies_on_to_the_next_in_the_same_episode(venv):
     venv.reset()
     goal = venv.swarm.goal(0, 0).copy()
     venv.swarm.place(np.array([goal - [0.6, 0.0, 0.0], goal + [4.0, 4.0, 0.0]]), copy=0)
@@ -70,12 +70,13 @@ def test_reaching_a_goal_ends_the_episode_and_the_uav_flies_on_to_the_next(venv)
     actions[0] = [1.0, 0.0, 0.0]
     for _ in range(10):
         _, rewards, dones, infos = venv.step(actions)
-        if dones[0]:
+        if infos[0]["reached"]:
             break
-    assert dones[0] and infos[0]["reached"] and not infos[0]["TimeLimit.truncated"]
-    assert rewards[0] > venv.weights.goal_bonus / 2
-    assert not dones[1]  # the other UAV of the copy flies on
+    assert infos[0]["reached"] and rewards[0] > venv.weights.goal_bonus / 2
+    assert not dones.any()  # the episode goes on, towards the next goal
     assert not np.array_equal(venv.swarm.goal(0, 0), goal)
+    _, rewards, _, infos = venv.step(actions)
+    assert not infos[0]["reached"] and rewards[0] < venv.weights.goal_bonus / 2  # the bonus is paid once
 
 
 def test_episodes_are_truncated_after_max_steps_and_vecmonitor_counts_them(venv):
