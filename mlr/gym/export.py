@@ -4,6 +4,7 @@ The module takes the NAI's raw input vector and answers the velocity command, as
 network does. Inside it, in order, is what stable-baselines3 does to an observation at prediction time:
 - VecNormalize's observation scaling, (x - mean) / sqrt(var + epsilon) clipped to ±clip_obs, when the
   policy was trained under it;
+- the policy's features extractor (SB3's flatten, the identity here, or mlr.gym.policy_features);
 - the actor network and its action head, the Gaussian's mean (deterministic actions);
 - the clip to the action space, ±max_speed per axis.
 The NAI then saturates the command to max_speed, as for any algorithm. After writing, the file is
@@ -34,7 +35,7 @@ TOLERANCE = 1e-5  # m/s
 
 
 class PolicyNetwork(nn.Module):
-    """velocity = clip(action_net(actor(clip((x - mean) / scale, ±clip_obs))), low, high)."""
+    """velocity = clip(action_net(actor(features(clip((x - mean) / scale, ±clip_obs)))), low, high)."""
 
     if TYPE_CHECKING:  # buffers, declared for mypy only (TorchScript reads class annotations)
         mean: torch.Tensor
@@ -42,9 +43,10 @@ class PolicyNetwork(nn.Module):
         low: torch.Tensor
         high: torch.Tensor
 
-    def __init__(self, actor: nn.Module, action_net: nn.Module, mean: np.ndarray, scale: np.ndarray,
-                 clip_obs: float, low: np.ndarray, high: np.ndarray):
+    def __init__(self, features: nn.Module, actor: nn.Module, action_net: nn.Module, mean: np.ndarray,
+                 scale: np.ndarray, clip_obs: float, low: np.ndarray, high: np.ndarray):
         super().__init__()
+        self.features = features
         self.actor = actor
         self.action_net = action_net
         self.clip_obs = float(clip_obs)
@@ -53,7 +55,7 @@ class PolicyNetwork(nn.Module):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         z = torch.clamp((x - self.mean) / self.scale, -self.clip_obs, self.clip_obs)
-        return torch.maximum(torch.minimum(self.action_net(self.actor(z)), self.high), self.low)
+        return torch.maximum(torch.minimum(self.action_net(self.actor(self.features(z))), self.high), self.low)
 
 
 def policy_module(model: PPO, normalize: VecNormalize | None = None) -> PolicyNetwork:
@@ -72,9 +74,10 @@ def policy_module(model: PPO, normalize: VecNormalize | None = None) -> PolicyNe
     else:
         mean, scale, clip_obs = np.zeros(size), np.ones(size), float("inf")
     space = _box(model.action_space, "action")
+    features = copy.deepcopy(policy.pi_features_extractor).cpu().eval()
     actor = copy.deepcopy(policy.mlp_extractor.policy_net).cpu().eval()
     head = copy.deepcopy(policy.action_net).cpu().eval()
-    return PolicyNetwork(actor, head, mean, scale, clip_obs, space.low, space.high).eval()
+    return PolicyNetwork(features, actor, head, mean, scale, clip_obs, space.low, space.high).eval()
 
 
 def export_policy(model: PPO, path: str | Path, n_neighbors: int, n_obstacles: int, neighbor_dist: float,

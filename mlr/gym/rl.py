@@ -49,6 +49,7 @@ KEYS: dict[str, tuple[Any, str]] = {
     "ppo": ({}, "stable-baselines3 PPO keyword arguments, e.g. {n_steps: 256, batch_size: 1024}"),
     "reward": ({}, "RewardWeights fields to change, e.g. {collision_penalty: 20}"),
     "encounters": (0.0, "share of episodes started with two UAVs on a collision course, 0..1 (mlr/gym/README.md)"),
+    "features": ("none", "none (the raw input vector) or geometric (mlr/gym/policy_features.py)"),
     "eval_flights": (32, "whole missions flown to measure the success rate at each checkpoint, >= 1"),
 }
 WHOLE_RANGES = {"copies": (1, 64), "n_neighbors": (0, 10), "n_obstacles": (0, 10), "max_steps": (1, None),
@@ -79,6 +80,7 @@ class RlConfig:
     reward: dict
     eval_flights: int
     encounters: float
+    features: str
 
     @property
     def name(self) -> str:
@@ -114,6 +116,8 @@ def load_config(path: str | Path) -> RlConfig:
     share = values["encounters"]
     if isinstance(share, bool) or not isinstance(share, int | float) or not 0.0 <= share <= 1.0:
         raise RlError(f"{path}: encounters is {share!r}: give {KEYS['encounters'][1]}")
+    if values["features"] not in ("none", "geometric"):
+        raise RlError(f"{path}: features is {values['features']!r}: give {KEYS['features'][1]}")
     for key in ("ppo", "reward"):
         if not isinstance(values[key], dict):
             raise RlError(f"{path}: {key} is {values[key]!r}: give {KEYS[key][1]}")
@@ -125,7 +129,7 @@ def load_config(path: str | Path) -> RlConfig:
                     values["n_obstacles"], float(dist), values["max_steps"], values["total_steps"],
                     values["checkpoint_every"], values["seed"], values["threads"],
                     {**DEFAULT_PPO, **values["ppo"]}, dict(values["reward"]), values["eval_flights"],
-                    float(values["encounters"]))
+                    float(values["encounters"]), values["features"])
 
 
 def latest_checkpoint(folder: Path) -> tuple[int, Path, Path] | None:
@@ -165,15 +169,23 @@ def train(config: RlConfig, out: Path, search_path: list[Path], progress: bool =
         venv = VecNormalize.load(str(resumed[2]), VecMonitor(base))
         model = PPO.load(str(resumed[1]), env=venv, device="cpu")
     else:
-        venv = VecNormalize(VecMonitor(base), norm_reward=True)
+        ppo = dict(config.ppo)
+        if config.features == "geometric":  # features from the raw vector: VecNormalize leaves observations alone
+            from mlr.gym.policy_features import GeometricExtractor
+
+            ppo["policy_kwargs"] = {**ppo.get("policy_kwargs", {}), "features_extractor_class": GeometricExtractor,
+                                    "features_extractor_kwargs": {
+                                        "n_neighbors": config.n_neighbors, "n_obstacles": config.n_obstacles,
+                                        "neighbor_dist": config.neighbor_dist, "max_speed": base.max_speed}}
+        venv = VecNormalize(VecMonitor(base), norm_obs=config.features == "none", norm_reward=True)
         model = PPO("MlpPolicy", venv, seed=config.seed, device="cpu", tensorboard_log=str(out / "tensorboard"),
-                    **config.ppo)
+                    **ppo)
     returns: list[float] = []
     history: list[dict] = []  # the success rate at each checkpoint
     started = time.monotonic()
     earlier = [e for e in _earlier_history(out) if resumed is not None and e["steps"] <= resumed[0]]
 
-    def success(steps: int) -> dict:
+    def success(steps: int, log: bool = True) -> dict:
         module = policy_module(model, venv)
 
         def policy(inputs):
@@ -186,8 +198,9 @@ def train(config: RlConfig, out: Path, search_path: list[Path], progress: bool =
         wall = (earlier[-1]["wall_seconds"] if earlier else 0.0) + time.monotonic() - started
         entry = {"steps": steps, "wall_seconds": wall, **found.as_dict()}
         history.append(entry)
-        model.logger.record("eval/success_rate", found.success_rate)
-        model.logger.record("eval/min_gap", found.min_gap)
+        if log:  # only while learning: a run resumed at its last step has no logger
+            model.logger.record("eval/success_rate", found.success_rate)
+            model.logger.record("eval/min_gap", found.min_gap)
         return entry
 
     class Progress(BaseCallback):
@@ -223,7 +236,7 @@ def train(config: RlConfig, out: Path, search_path: list[Path], progress: bool =
     if left > 0:
         model.learn(left, callback=Progress(), reset_num_timesteps=resumed is None, tb_log_name="ppo")
     wall = time.monotonic() - started
-    final = success(int(model.num_timesteps)) if not history or history[-1]["steps"] != model.num_timesteps \
+    final = success(int(model.num_timesteps), log=left > 0) if not history or history[-1]["steps"] != model.num_timesteps \
         else history[-1]
     _write_history(out, earlier + history)
     model.save(str(out / "policy.zip"))

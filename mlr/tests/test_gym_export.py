@@ -49,3 +49,26 @@ def test_an_export_refuses_to_overwrite_and_a_wrong_layout(tmp_path, trained):
     with pytest.raises(ValueError, match=r"takes \(18,\) observations.*has 24 inputs"):
         export_policy(model, tmp_path / "other.pt", 2, 2, 6.0, normalize=venv)
     assert not (tmp_path / "other.pt").exists() and not (tmp_path / "other.json").exists()
+
+
+def test_a_policy_on_geometric_features_exports_them_inside_the_module(tmp_path):
+    from magna_uav.nai.neural import load_model
+    from mlr.features import GeometricFeatures
+    from mlr.gym.policy_features import GeometricExtractor
+
+    torch.set_num_threads(1)
+    scenario = load_scenario("Gym/1Obs_Central_Cylinder", "Gym/2UAVs_2paths_Central_Cylinder", [CORPUS])
+    venv = VecNormalize(SwarmVecEnv(scenario, copies=1, max_steps=40), norm_obs=False)
+    kwargs = {"n_neighbors": 1, "n_obstacles": 2, "neighbor_dist": 6.0, "max_speed": 2.0}
+    model = PPO("MlpPolicy", venv, n_steps=64, batch_size=64, n_epochs=1, seed=0, device="cpu",
+                policy_kwargs={"features_extractor_class": GeometricExtractor, "features_extractor_kwargs": kwargs})
+    try:
+        model.learn(128)
+        extractor = model.policy.pi_features_extractor
+        assert extractor.features_dim == 18 + GeometricFeatures("path", 1, 2, 6.0, 2.0).size
+        path = export_policy(model, tmp_path / "geo.pt", 1, 2, 6.0, normalize=venv)  # checked against SB3 inside
+        observations = venv.get_original_obs()
+        expected, _ = model.predict(observations, deterministic=True)
+        np.testing.assert_allclose(load_model(path).predict(observations[0], None), expected[0], atol=1e-5)
+    finally:
+        venv.close()

@@ -36,6 +36,7 @@ def test_the_shipped_config_loads():
     ("world: Gym/A\nmission: Gym/B\nreward: {crash: 1}\n", "reward.crash is not a reward weight"),
     ("world: Gym/A\nmission: Gym/B\nneighbor_dist: -1\n", "neighbor_dist is -1"),
     ("world: Gym/A\nmission: Gym/B\nencounters: 2\n", "encounters is 2: give share of episodes"),
+    ("world: Gym/A\nmission: Gym/B\nfeatures: polar\n", "features is 'polar': give none .* or geometric"),
 ])
 def test_config_errors_name_the_file_and_the_key(tmp_path, text, message):
     path = config_file(tmp_path, text)
