@@ -236,8 +236,8 @@ def train(config: RlConfig, out: Path, search_path: list[Path], progress: bool =
     if left > 0:
         model.learn(left, callback=Progress(), reset_num_timesteps=resumed is None, tb_log_name="ppo")
     wall = time.monotonic() - started
-    final = success(int(model.num_timesteps), log=left > 0) if not history or history[-1]["steps"] != model.num_timesteps \
-        else history[-1]
+    measured = history and history[-1]["steps"] == model.num_timesteps  # at a checkpoint that was the last step
+    final = history[-1] if measured else success(int(model.num_timesteps), log=left > 0)
     _write_history(out, earlier + history)
     model.save(str(out / "policy.zip"))
     venv.save(str(out / "vecnormalize.pkl"))
