@@ -27,6 +27,12 @@ from magna_common.errors import UsageError
 from magna_common.files import write_text_atomically
 from magna_common.storage_tree import StorageError, check_component
 
+EXAMPLES = """\
+examples:
+  magna learn compare --world Gym/Empty_4_Cylinders --mission Gym/2UAVs_2paths_4_Cylinders \\
+      --search-path ../shared/ros_magna_corpus --n-iter 20 --seed 2000 \\
+      --model supervised=~/nets/four.pt --model rl=~/magna_data/mlr/rl/rl_four_cylinders/policy.pt   # [long]
+"""
 HELP = "fly a mission with ORCA-3D and with several networks (supervised, RL, ...), N simulations each, in one table"
 
 
@@ -39,7 +45,7 @@ def _model(value: str) -> tuple[str, Path]:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
-    parser.epilog = __doc__.split("\n\n", 2)[1] if __doc__ else None
+    parser.epilog = EXAMPLES
     parser.add_argument("--world", required=True, metavar="WORLD/SUBWORLD", help="the world, as for magna run")
     parser.add_argument("--mission", required=True, metavar="MISSION/SUBMISSION",
                         help="a mission that sets ORCA-3D with an algorithm_control state, as for magna learn fly")
