@@ -12,6 +12,8 @@ flown `max_steps` control steps (truncated).
 - Action: the velocity command (m/s, map frame), each axis within ±max_speed and the whole saturated to
   max_speed, as the NAI saturates any command; sent at the control rate (10 Hz) through the UAL.
 - Reward: mlr.gym.reward, term by term in `info["reward_terms"]`.
+- With `depth=(width, height)`, the observation is a Dict: {"vector": the input vector, "depth": the UAV's
+  forward depth image from magna_sim's camera model} (mlr.gym.depth).
 """
 from __future__ import annotations
 
@@ -24,6 +26,7 @@ import numpy as np
 
 from magna_uav.nai.goal import Goal
 from magna_uav.nai.simple import saturate
+from mlr.gym.depth import DepthObservation, dict_space
 from mlr.gym.reward import RewardWeights, StepOutcome, reward_terms
 from mlr.gym.scenario import Scenario, load_scenario
 from mlr.gym.swarm import Swarm
@@ -37,12 +40,14 @@ class MagnaNavEnv(gym.Env):
     def __init__(self, world: str = "Gym/1Obs_Central_Cylinder", mission: str = "Gym/2UAVs_2paths_Central_Cylinder",
                  search_path: Sequence[Path] = (), n_neighbors: int = 1, n_obstacles: int = 2,
                  neighbor_dist: float = 6.0, max_steps: int = 600, weights: RewardWeights = RewardWeights(),
-                 scenario: Scenario | None = None):
+                 scenario: Scenario | None = None, depth: tuple[int, int] | None = None, depth_fov: float = 90.0):
         self.scenario = scenario if scenario is not None else load_scenario(world, mission, list(search_path))
         self.swarm = Swarm(self.scenario, n_neighbors, n_obstacles, neighbor_dist)
         self.max_steps, self.weights = max_steps, weights
         self.max_speed = self.scenario.uavs[LEARNER].max_speed
-        self.observation_space = gym.spaces.Box(-np.inf, np.inf, (self.swarm.observation_size,), np.float32)
+        vector = gym.spaces.Box(-np.inf, np.inf, (self.swarm.observation_size,), np.float32)
+        self.depth = DepthObservation(depth, depth_fov) if depth is not None else None
+        self.observation_space = vector if self.depth is None else dict_space(vector, self.depth)
         self.action_space = gym.spaces.Box(-self.max_speed, self.max_speed, (3,), np.float32)
         self._others = {j: self.swarm.orca(j) for j in range(len(self.scenario.uavs)) if j != LEARNER}
         self._previous_command = np.zeros(3)
@@ -53,7 +58,7 @@ class MagnaNavEnv(gym.Env):
         self.swarm.start(int(self.np_random.integers(2 ** 31)))
         self._previous_command = np.zeros(3)
         self._steps = 0
-        return self.swarm.observation(LEARNER), {"goal": self.swarm.goal(LEARNER).copy()}
+        return self._observe(), {"goal": self.swarm.goal(LEARNER).copy()}
 
     def step(self, action):
         swarm = self.swarm
@@ -76,8 +81,12 @@ class MagnaNavEnv(gym.Env):
         self._previous_command = command
         reached = after <= self.weights.goal_radius and not collided
         info = {"reward_terms": terms, "goal": swarm.goal(LEARNER).copy(), "collided": collided, "reached": reached}
-        return (swarm.observation(LEARNER), float(sum(terms.values())), collided or reached,
+        return (self._observe(), float(sum(terms.values())), collided or reached,
                 self._steps >= self.max_steps and not (collided or reached), info)
+
+    def _observe(self):
+        vector = self.swarm.observation(LEARNER)
+        return vector if self.depth is None else {"vector": vector, "depth": self.depth.image(self.swarm, LEARNER)}
 
     def close(self) -> None:
         self.swarm.close()

@@ -79,6 +79,10 @@ class Fleet:
             yaw = 0.0 if yaws is None else float(yaws[j])
             self.world.place_airborne(int(self._ids[copy, j]), positions[j] + self.offsets[copy], yaw)
 
+    def vehicle(self, copy: int, j: int):
+        """The magna_sim vehicle of UAV j of `copy` (world frame: its position includes the copy's offset)."""
+        return self._vehicles[copy][j]
+
     def positions(self) -> np.ndarray:
         """(K, M, 3) in the scenario frame."""
         return np.array([[v.position for v in row] for row in self._vehicles]) - self.offsets[:, None, :]

@@ -4,6 +4,7 @@ The agents are the scenario's UAVs, named "uav_<id>" as MAGNA names them. Each h
 action and reward of the single-agent environment (env.py). An agent is done when it reaches its goal
 or collides (terminated, as mlr.gym.swarm counts it); the UAV then hovers where it is and stays in the others' way. All
 are truncated after `max_steps` control steps. A shared policy for every UAV is the usual use.
+With `depth=(width, height)`, each agent's observation is a Dict with its depth image (mlr.gym.depth).
 """
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ import numpy as np
 from pettingzoo import ParallelEnv
 
 from magna_uav.nai.simple import saturate
+from mlr.gym.depth import DepthObservation, dict_space
 from mlr.gym.reward import RewardWeights, StepOutcome, reward_terms
 from mlr.gym.scenario import Scenario, load_scenario
 from mlr.gym.swarm import Swarm
@@ -26,15 +28,16 @@ class MagnaNavParallelEnv(ParallelEnv):
     def __init__(self, world: str = "Gym/1Obs_Central_Cylinder", mission: str = "Gym/2UAVs_2paths_Central_Cylinder",
                  search_path: Sequence[Path] = (), n_neighbors: int = 1, n_obstacles: int = 2,
                  neighbor_dist: float = 6.0, max_steps: int = 600, weights: RewardWeights = RewardWeights(),
-                 scenario: Scenario | None = None):
+                 scenario: Scenario | None = None, depth: tuple[int, int] | None = None, depth_fov: float = 90.0):
         self.scenario = scenario if scenario is not None else load_scenario(world, mission, list(search_path))
         self.swarm = Swarm(self.scenario, n_neighbors, n_obstacles, neighbor_dist)
         self.max_steps, self.weights = max_steps, weights
         self.possible_agents = [f"uav_{uav.id}" for uav in self.scenario.uavs]
         self._index = {name: j for j, name in enumerate(self.possible_agents)}
-        self._observation_spaces = {
-            name: gym.spaces.Box(-np.inf, np.inf, (self.swarm.observation_size,), np.float32)
-            for name in self.possible_agents}
+        self.depth = DepthObservation(depth, depth_fov) if depth is not None else None
+        vector = gym.spaces.Box(-np.inf, np.inf, (self.swarm.observation_size,), np.float32)
+        self._observation_spaces = {name: vector if self.depth is None else dict_space(vector, self.depth)
+                                    for name in self.possible_agents}
         self._action_spaces = {
             name: gym.spaces.Box(-uav.max_speed, uav.max_speed, (3,), np.float32)
             for name, uav in zip(self.possible_agents, self.scenario.uavs, strict=True)}
@@ -43,7 +46,7 @@ class MagnaNavParallelEnv(ParallelEnv):
         self._steps = 0
         self._rng = np.random.default_rng()
 
-    def observation_space(self, agent: str) -> gym.spaces.Box:
+    def observation_space(self, agent: str) -> gym.spaces.Space:
         return self._observation_spaces[agent]
 
     def action_space(self, agent: str) -> gym.spaces.Box:
@@ -56,7 +59,7 @@ class MagnaNavParallelEnv(ParallelEnv):
         self.agents = list(self.possible_agents)
         self._previous[:] = 0.0
         self._steps = 0
-        observations = {name: self.swarm.observation(self._index[name]) for name in self.agents}
+        observations = {name: self._observe(self._index[name]) for name in self.agents}
         return observations, {name: {"goal": self.swarm.goal(self._index[name]).copy()} for name in self.agents}
 
     def step(self, actions: dict):
@@ -76,7 +79,7 @@ class MagnaNavParallelEnv(ParallelEnv):
             terms = reward_terms(StepOutcome(before[name], after, swarm.gap(j), collided, commands[j],
                                              self._previous[j], self.scenario.uavs[j].max_speed), self.weights)
             reached = after <= self.weights.goal_radius and not collided
-            observations[name] = swarm.observation(j)
+            observations[name] = self._observe(j)
             rewards[name] = float(sum(terms.values()))
             terminations[name] = collided or reached
             truncations[name] = self._steps >= self.max_steps and not terminations[name]
@@ -85,6 +88,10 @@ class MagnaNavParallelEnv(ParallelEnv):
         self._previous = commands
         self.agents = [name for name in self.agents if not (terminations[name] or truncations[name])]
         return observations, rewards, terminations, truncations, infos
+
+    def _observe(self, j: int):
+        vector = self.swarm.observation(j)
+        return vector if self.depth is None else {"vector": vector, "depth": self.depth.image(self.swarm, j)}
 
     def close(self) -> None:
         self.swarm.close()

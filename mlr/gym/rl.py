@@ -9,7 +9,8 @@ settings and PPO's. The run writes into its output folder:
 - `policy.pt` and `policy.json`: the policy exported for the NAI (mlr.gym.export);
 - `rl.json`: the config, steps, wall time, the mean return of the first and last episodes, and the
   success rate (mlr.gym.evaluate: whole missions flown deterministically in the gym) at every checkpoint
-  and at the end, with the training wall time it was reached at; TensorBoard has it as eval/success_rate.
+  and at the end, with the training wall time it was reached at; TensorBoard has it as eval/success_rate,
+  and `success.png` draws it against the training time.
 """
 from __future__ import annotations
 
@@ -239,6 +240,9 @@ def train(config: RlConfig, out: Path, search_path: list[Path], progress: bool =
     measured = history and history[-1]["steps"] == model.num_timesteps  # at a checkpoint that was the last step
     final = history[-1] if measured else success(int(model.num_timesteps), log=left > 0)
     _write_history(out, earlier + history)
+    from mlr.gym.history_plot import draw_history
+
+    draw_history(earlier + history, out / "success.png", config.name)
     model.save(str(out / "policy.zip"))
     venv.save(str(out / "vecnormalize.pkl"))
     export_policy(model, out / "policy.pt", config.n_neighbors, config.n_obstacles, config.neighbor_dist,

@@ -135,6 +135,13 @@ class Swarm:
                               self.n_obstacles, self.neighbor_dist)
         return vector.astype(np.float32)
 
+    def depth_image(self, j: int, camera, copy: int = 0) -> np.ndarray:
+        """UAV j's forward depth image (metres, (height, width) float32) from `camera`, a magna_sim DepthCamera on
+        this swarm's world: the sim node's camera model. Nothing reads beyond its `far` (20 m by default), and
+        copies are 200 m apart, so a camera sees only its own copy."""
+        vehicle = self.fleet.vehicle(copy, j)
+        return camera.render(vehicle.position, vehicle.orientation)
+
     def orca(self, j: int) -> NavigationInterface:
         """An ORCA-3D NAI for UAV j with the mission's parameters (the UAVs no policy flies). The numpy reference
         solves it: the native solver is a ROS service, and the gym runs without ROS."""

@@ -75,3 +75,23 @@ def test_an_episode_is_truncated_after_max_steps(env):
         _, _, terminated, truncated, _ = env.step(np.zeros(3, dtype=np.float32))  # hover: neither goal nor crash
         assert not terminated
         assert truncated == (step == 50)
+
+
+def test_the_optional_depth_image_sees_the_uav_ahead_and_passes_the_checker(central):
+    from gymnasium.utils.env_checker import check_env
+
+    made = MagnaNavEnv(scenario=central, max_steps=20, depth=(64, 48))
+    try:
+        assert made.observation_space["depth"].shape == (48, 64)
+        check_env(made, skip_render_check=True)
+        made.reset(seed=2)
+        made.swarm.place(np.array([[-6.0, 6.0, 3.0], [-4.0, 6.0, 3.0]]))  # UAV 2 2 m ahead along +x (yaw 0)
+        observation, *_ = made.step(np.zeros(3, dtype=np.float32))
+        depth = observation["depth"]
+        assert depth.dtype == np.float32 and depth.shape == (48, 64)
+        # the other UAV's body, a 0.3 m-radius disc seen edge on at the horizon: its near rim, 1.7 m away
+        assert 1.5 < float(depth[20:28, 24:40].min()) < 2.0
+        assert float(depth[0, 0]) == 20.0  # nothing there within 20 m: the NAI's far value
+        np.testing.assert_array_equal(observation["vector"], made.swarm.observation(0))
+    finally:
+        made.close()

@@ -87,3 +87,17 @@ def test_overlapping_safety_spheres_collide_as_the_uav_managers_evaluator_counts
         assert all(infos[name]["reward_terms"]["near_miss"] < 0 for name in infos)
     finally:
         env.close()
+
+
+def test_with_depth_images_every_agent_gets_its_own_and_the_api_test_passes(central):
+    env = MagnaNavParallelEnv(scenario=central, max_steps=20, depth=(16, 12))
+    try:
+        parallel_api_test(env, num_cycles=20)
+        observations, _ = env.reset(seed=3)
+        assert all(observations[name]["depth"].shape == (12, 16) for name in env.agents)
+        env.swarm.place(np.array([[-6.0, 6.0, 3.0], [6.0, 6.0, 3.0]]))
+        observations, *_ = env.step({name: np.zeros(3, dtype=np.float32) for name in env.agents})
+        # both look along +x: the second sees only the sky and the ground; the first also the central obstacle
+        assert not np.array_equal(observations["uav_1"]["depth"], observations["uav_2"]["depth"])
+    finally:
+        env.close()

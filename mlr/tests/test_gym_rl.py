@@ -78,6 +78,7 @@ def test_a_run_goes_on_from_its_latest_checkpoint_and_refuses_another_configs_fo
     assert [entry["steps"] for entry in history] == [4096, 8192, 12288]
     assert history[0]["wall_seconds"] < history[1]["wall_seconds"] < history[2]["wall_seconds"]
     assert json.loads((out / "history.json").read_text()) == history
+    assert (out / "success.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     other = quick(total_steps=8192, checkpoint_every=4096, copies=3, eval_flights=2)
     with pytest.raises(RlError, match="differs in copies.*--force"):
         prepare_output(other, out, force=False)
