@@ -22,7 +22,7 @@ import json
 import sys
 from pathlib import Path
 
-from magna_common.cli_vocabulary import add_output, add_rtf, add_search_path
+from magna_common.cli_vocabulary import add_output
 from magna_common.errors import UsageError
 from magna_common.files import write_text_atomically
 from magna_common.storage_tree import StorageError, check_component
@@ -44,23 +44,16 @@ def _model(value: str) -> tuple[str, Path]:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from mlr.fly import add_batch_arguments
+
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
     parser.epilog = EXAMPLES
-    parser.add_argument("--world", required=True, metavar="WORLD/SUBWORLD", help="the world, as for magna run")
-    parser.add_argument("--mission", required=True, metavar="MISSION/SUBMISSION",
-                        help="a mission that sets ORCA-3D with an algorithm_control state, as for magna learn fly")
+    add_batch_arguments(parser)
     parser.add_argument("--model", required=True, type=_model, action="append", metavar="LABEL=PATH.pt",
                         help="a network and its column label; give one --model per network")
-    parser.add_argument("--n-iter", type=int, default=20, metavar="N", help="simulations per batch (default: 20)")
     parser.add_argument("--name", default="compare", help="names the batches: NAME_orca, NAME_LABEL_nn "
                                                           "(default: compare)")
-    parser.add_argument("--data-root", type=Path, default=Path("~/magna_data"), metavar="DIR",
-                        help="where the batches' data go (default: ~/magna_data)")
-    add_search_path(parser, what="the world and mission files")
     add_output(parser, metavar="DIR", help="where the table goes (default DATA_ROOT/mlr/compare/NAME)")
-    add_rtf(parser, default="max")
-    parser.add_argument("--seed", type=int, default=0, metavar="S", help="simulation m flies seed S+m (default 0)")
-    parser.add_argument("--no-bag", action="store_true", help="do not record a bag per simulation")
 
 
 def run(args) -> int:

@@ -60,26 +60,31 @@ examples:
 """
 
 
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.formatter_class = argparse.RawDescriptionHelpFormatter
-    parser.epilog = _EPILOG
+def add_batch_arguments(parser: argparse.ArgumentParser) -> None:
+    """What the batches of `fly` and `compare` are: the world and mission, how many, where, how fast, which seeds."""
     parser.add_argument("--world", required=True, metavar="WORLD/SUBWORLD", help="the world, as for magna run")
     parser.add_argument("--mission", required=True, metavar="MISSION/SUBMISSION",
                         help="a mission that sets orca3/orca3d with an algorithm_control state")
-    parser.add_argument("--model", required=True, type=Path, metavar="PATH.pt",
-                        help="the TorchScript network (its spec PATH.json beside it), as mlr's export writes it")
     parser.add_argument("--n-iter", type=int, default=20, metavar="N", help="simulations per batch (default: 20)")
     add_search_path(parser, what="worlds and missions (passed on to magna run)")
-    parser.add_argument("--name", default="fly",
-                        help="the batches are named NAME_orca and NAME_nn (default: %(default)s)")
     parser.add_argument("--data-root", type=Path, default=Path("~/magna_data"), metavar="DIR",
                         help="where Simulations/ goes (default: ~/magna_data)")
-    add_output(parser, metavar="DIR", old=("--out",),
-               help="where the comparison and the network's mission go (default: DATA_ROOT/mlr/fly/NAME)")
     add_rtf(parser)
     parser.add_argument("--seed", type=int, default=0, metavar="S",
-                        help="base seed of both batches; simulation M uses S+M (default: 0)")
+                        help="base seed of every batch; simulation M uses S+M (default: 0)")
     parser.add_argument("--no-bag", action="store_true", help="do not record a bag per simulation")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.formatter_class = argparse.RawDescriptionHelpFormatter
+    parser.epilog = _EPILOG
+    add_batch_arguments(parser)
+    parser.add_argument("--model", required=True, type=Path, metavar="PATH.pt",
+                        help="the TorchScript network (its spec PATH.json beside it), as mlr's export writes it")
+    parser.add_argument("--name", default="fly",
+                        help="the batches are named NAME_orca and NAME_nn (default: %(default)s)")
+    add_output(parser, metavar="DIR", old=("--out",),
+               help="where the comparison and the network's mission go (default: DATA_ROOT/mlr/fly/NAME)")
     parser.add_argument("--fallback", action="store_true",
                         help="the network flies with the NAI's safety fallback: ORCA-3D, the teacher, takes over a "
                              "step whose network command would collide within its time horizon (report such "
