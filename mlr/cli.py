@@ -7,6 +7,7 @@
     fly              fly a mission with a network and with ORCA-3D, side by side
     thesis           reproduce the thesis experiment (datasets, architectures, flights)
     dagger CONFIG    DAgger: fly the network, relabel its states with ORCA-3D's answers, retrain
+    rl CONFIG        PPO on the gym (mlr/gym), exported for the NAI
 """
 from __future__ import annotations
 
@@ -20,7 +21,7 @@ from pathlib import Path
 
 from magna_common.cli_vocabulary import OutputExists, add_force, add_output, check_output
 
-HELP = "learn navigation networks from recorded missions (torch): train, pickle, board, export, fly, thesis, dagger"
+HELP = "learn navigation networks from recorded missions (torch): train, pickle, board, export, fly, thesis, dagger, rl"
 # the command users type; messages name it, so that what they suggest can be typed as it is
 COMMAND = "magna learn"
 QUICK_CONFIG = "mlr/configs/crossing_quick.yaml"  # trains in under a minute on the data of `make run`
@@ -277,11 +278,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_force(exp, old=("--overwrite",), help="replace the .pt and .json files if they exist")
     exp.set_defaults(_mlr_run=cmd_export)
 
-    from mlr import dagger, fly, thesis
+    from mlr import compare, dagger, fly, thesis
 
     fly_parser = sub.add_parser("fly", help=fly.HELP, description=fly.HELP)
     fly.add_arguments(fly_parser)
     fly_parser.set_defaults(_mlr_run=fly.run)
+
+    compare_parser = sub.add_parser("compare", help=compare.HELP, description=compare.HELP)
+    compare.add_arguments(compare_parser)
+    compare_parser.set_defaults(_mlr_run=compare.run)
 
     thesis_parser = sub.add_parser("thesis", help=thesis.HELP, description=thesis.DESCRIPTION,
                                    epilog=thesis.EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -293,6 +298,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     dagger.add_arguments(dagger_parser)
     dagger_parser.set_defaults(_mlr_run=dagger.run)
 
+    from mlr.gym import rl
+
+    rl_parser = sub.add_parser("rl", help=rl.HELP, description=rl.DESCRIPTION, epilog=rl.EXAMPLES,
+                               formatter_class=argparse.RawDescriptionHelpFormatter)
+    rl.add_arguments(rl_parser)
+    rl_parser.set_defaults(_mlr_run=rl.run)
+
 
 def run(args) -> int:
     from magna_common.errors import UserError
@@ -302,7 +314,8 @@ def run(args) -> int:
     command = getattr(args, "_mlr_run", None)
     try:
         if command is None:
-            raise CliError("give a command: train, pickle, board, export, fly, thesis or dagger (--help lists them)")
+            raise CliError("give a command: train, pickle, board, export, fly, compare, thesis, dagger or rl "
+                           "(--help lists them)")
         return int(command(args) or 0)
     except (CliError, ConfigError, PicklerError, FileExistsError, OutputExists, UserError) as err:
         print(f"mlr: {err}", file=sys.stderr)

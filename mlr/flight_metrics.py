@@ -3,6 +3,7 @@ side by side, as Markdown, JSON and a figure."""
 from __future__ import annotations
 
 import json
+import math
 import statistics
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -13,6 +14,8 @@ from magna_common.storage_tree import RESULT_FILE, SUMMARY_FILE, simulation_dir
 from mlr.nn_mission import FlyError
 
 TARGET_RATIO = 0.95  # the project's target: missions flown by the network collision-free at >= 95% of ORCA's rate
+MIN_GAP = ("per simulation: the smallest gap between two UAVs' safety spheres (m; below 0 they overlap, a "
+           "collision) that any UAV's recorder saw while it flew a `path` role")
 TIME_TO_GOAL = ("per UAV and simulation: the time of the UAV's last `path` control step minus its first, "
                 "counted when every path role it flew ended 'succeeded' (the recorder's outcome column)")
 
@@ -30,6 +33,11 @@ class BatchMetrics:
     uav_paths: int = 0  # (simulation, UAV) pairs that flew a path role
     times_to_goal: list[float] = field(default_factory=list)  # of those whose path roles all succeeded
     seeds: list[int] = field(default_factory=list)
+    min_gaps: list[float] = field(default_factory=list)  # per simulation: MIN_GAP
+
+    @property
+    def min_gap(self) -> float | None:
+        return min(self.min_gaps) if self.min_gaps else None
 
     @property
     def collision_free_rate(self) -> float | None:
@@ -60,7 +68,8 @@ class BatchMetrics:
                 "collision_free": self.collision_free, "collision_free_rate": self.collision_free_rate,
                 "uav_paths": self.uav_paths, "goals_reached": self.goals_reached,
                 "mean_time_to_goal": self.mean_time_to_goal, "std_time_to_goal": self.std_time_to_goal,
-                "times_to_goal": self.times_to_goal, "seeds": self.seeds}
+                "times_to_goal": self.times_to_goal, "seeds": self.seeds, "min_gaps": self.min_gaps,
+                "min_gap": self.min_gap}
 
 
 def path_time_to_goal(rows: list[dict]) -> tuple[bool, float | None]:
@@ -102,6 +111,7 @@ def read_batch(dataset_dir: Path, label: str) -> BatchMetrics:
             metrics.left_out += 1
             continue
         metrics.simulations += 1
+        gaps: list[float] = []
         metrics.successes += row.success
         metrics.collision_free += row.collisions == 0
         if result is not None and result.seed is not None:
@@ -111,11 +121,42 @@ def read_batch(dataset_dir: Path, label: str) -> BatchMetrics:
                 _, uav_rows = read_csv(csv_path)
             except ValueError as err:
                 raise FlyError(str(err)) from None
+            gaps += [float(row["nearest_uav_gap"]) for row in uav_rows
+                     if row["role"] == "path" and math.isfinite(float(row["nearest_uav_gap"]))]
             flew, seconds = path_time_to_goal(uav_rows)
             metrics.uav_paths += flew
             if seconds is not None:
                 metrics.times_to_goal.append(seconds)
+        if gaps:
+            metrics.min_gaps.append(min(gaps))
     return metrics
+
+
+def side_by_side(batches: list[BatchMetrics], title: str) -> str:
+    """A Markdown table of several batches of one mission (`magna learn fly`'s rows, and the minimum gap)."""
+    def count(n, total):
+        return f"{n}/{total} ({100 * n / total:.0f}%)" if total else "-"
+
+    def seconds(m: BatchMetrics):
+        return "-" if m.mean_time_to_goal is None else f"{m.mean_time_to_goal:.1f} ± {m.std_time_to_goal:.1f}"
+
+    def gap(m: BatchMetrics):
+        if not m.min_gaps:
+            return "-"
+        return f"{m.min_gap:.2f} (median {statistics.median(m.min_gaps):.2f})"
+
+    rows = [("simulations", lambda m: str(m.simulations)),
+            ("collision-free", lambda m: count(m.collision_free, m.simulations)),
+            ("successful missions", lambda m: count(m.successes, m.simulations)),
+            ("UAV paths to the goal", lambda m: count(m.goals_reached, m.uav_paths)),
+            ("time to goal (s, mean ± std)", seconds),
+            ("minimum gap between UAVs (m)", gap)]
+    lines = [f"## {title}", "", "| | " + " | ".join(m.label for m in batches) + " |",
+             "|---|" + "---:|" * len(batches)]
+    lines += [f"| {name} | " + " | ".join(cell(m) for m in batches) + " |" for name, cell in rows]
+    lines += ["", f"- time to goal: {TIME_TO_GOAL}", f"- minimum gap: {MIN_GAP}"]
+    lines += [f"- {m.label}: `{m.dataset}`" for m in batches]
+    return "\n".join(lines) + "\n"
 
 
 @dataclass

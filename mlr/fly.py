@@ -60,26 +60,31 @@ examples:
 """
 
 
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.formatter_class = argparse.RawDescriptionHelpFormatter
-    parser.epilog = _EPILOG
+def add_batch_arguments(parser: argparse.ArgumentParser) -> None:
+    """What the batches of `fly` and `compare` are: the world and mission, how many, where, how fast, which seeds."""
     parser.add_argument("--world", required=True, metavar="WORLD/SUBWORLD", help="the world, as for magna run")
     parser.add_argument("--mission", required=True, metavar="MISSION/SUBMISSION",
                         help="a mission that sets orca3/orca3d with an algorithm_control state")
-    parser.add_argument("--model", required=True, type=Path, metavar="PATH.pt",
-                        help="the TorchScript network (its spec PATH.json beside it), as mlr's export writes it")
     parser.add_argument("--n-iter", type=int, default=20, metavar="N", help="simulations per batch (default: 20)")
     add_search_path(parser, what="worlds and missions (passed on to magna run)")
-    parser.add_argument("--name", default="fly",
-                        help="the batches are named NAME_orca and NAME_nn (default: %(default)s)")
     parser.add_argument("--data-root", type=Path, default=Path("~/magna_data"), metavar="DIR",
                         help="where Simulations/ goes (default: ~/magna_data)")
-    add_output(parser, metavar="DIR", old=("--out",),
-               help="where the comparison and the network's mission go (default: DATA_ROOT/mlr/fly/NAME)")
     add_rtf(parser)
     parser.add_argument("--seed", type=int, default=0, metavar="S",
-                        help="base seed of both batches; simulation M uses S+M (default: 0)")
+                        help="base seed of every batch; simulation M uses S+M (default: 0)")
     parser.add_argument("--no-bag", action="store_true", help="do not record a bag per simulation")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.formatter_class = argparse.RawDescriptionHelpFormatter
+    parser.epilog = _EPILOG
+    add_batch_arguments(parser)
+    parser.add_argument("--model", required=True, type=Path, metavar="PATH.pt",
+                        help="the TorchScript network (its spec PATH.json beside it), as mlr's export writes it")
+    parser.add_argument("--name", default="fly",
+                        help="the batches are named NAME_orca and NAME_nn (default: %(default)s)")
+    add_output(parser, metavar="DIR", old=("--out",),
+               help="where the comparison and the network's mission go (default: DATA_ROOT/mlr/fly/NAME)")
     parser.add_argument("--fallback", action="store_true",
                         help="the network flies with the NAI's safety fallback: ORCA-3D, the teacher, takes over a "
                              "step whose network command would collide within its time horizon (report such "
@@ -94,6 +99,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="rewrite simulations 1..N of existing datasets and a different network mission")
     parser.add_argument("--skip-orca", action="store_true",
                         help="fly only the network; compare with the ORCA-3D dataset NAME_orca already there")
+    parser.add_argument("--orca-name", metavar="NAME",
+                        help="the ORCA-3D dataset's name (default NAME_orca); with --skip-orca, compare another "
+                             "network with the ORCA-3D batch of an earlier fly")
 
 
 def repo_root() -> Path:
@@ -142,6 +150,7 @@ class FlyRequest:
     skip_orca: bool = False
     fallback: bool = False
     teacher_agent_radius: float | None = None
+    orca_name: str | None = None  # the ORCA-3D dataset's NAME (default NAME_orca): several networks, one ORCA batch
 
     @classmethod
     def from_args(cls, args: argparse.Namespace) -> FlyRequest:
@@ -165,7 +174,7 @@ def prepare(request: FlyRequest) -> FlyPlan:
     if request.n_iter < 1:
         raise FlyError(f"--n-iter must be >= 1, got {request.n_iter}")
     rtf = parse_rtf(request.rtf)
-    orca_name, nn_name = f"{request.name}_orca", f"{request.name}_nn"
+    orca_name, nn_name = request.orca_name or f"{request.name}_orca", f"{request.name}_nn"
     for value in (orca_name, nn_name):
         check_component(value, "--name")
     magna = repo_root() / "magna"
@@ -290,14 +299,14 @@ def _stop(process: subprocess.Popen, wait: float) -> None:
             continue
 
 
-def fly(plan: FlyPlan) -> int:
-    """Run the batches of `plan`, then compare them; the exit status (module doc)."""
+def fly_batches(plan: FlyPlan) -> int:
+    """Run the batches of `plan`: 0 when all ran, 1 when a simulation failed, else the status to stop with."""
     for change in plan.changes:
         print(f"fly: network mission {plan.variant}: {change}", flush=True)
     codes = []
     for label, argv in (("ORCA-3D", plan.orca_argv), ("network", plan.nn_argv)):
         if argv is None:
-            print(f"fly: {label}: reusing {plan.orca_dataset} (--skip-orca)", flush=True)
+            print(f"fly: {label}: reusing {plan.orca_dataset}", flush=True)
             continue
         print(f"fly: {label} batch: {' '.join(argv)}", flush=True)
         code, interrupted = run_batch(argv)
@@ -309,12 +318,20 @@ def fly(plan: FlyPlan) -> int:
                   file=sys.stderr)
             return code
         codes.append(code)
+    return 1 if any(codes) else 0
+
+
+def fly(plan: FlyPlan) -> int:
+    """Run the batches of `plan`, then compare them; the exit status (module doc)."""
+    status = fly_batches(plan)
+    if status not in (0, 1):
+        return status
     comparison = Comparison(read_batch(plan.orca_dataset, "ORCA-3D"), read_batch(plan.nn_dataset, "network"),
                             plan.world, plan.mission, str(plan.model), [str(c) for c in plan.changes])
     files = write_comparison(comparison, plan.out)
     print(comparison.markdown(), flush=True)
     print("fly: " + ", ".join(str(f) for f in files), flush=True)
-    return 1 if any(codes) else 0
+    return status
 
 
 def run(args) -> int:

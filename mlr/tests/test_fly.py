@@ -212,7 +212,8 @@ def test_the_variant_file_is_never_replaced_by_a_different_one_without_overwrite
 # --- metrics on synthetic datasets --------------------------------------------------------------------------
 
 def write_uav_csv(path: Path, uav_id: int, other: int, flight: list[tuple[float, str, str]]) -> None:
-    """A recorder CSV by hand: one row per (time, role, outcome); every other column unknown."""
+    """A recorder CSV by hand: one row per (time, role, outcome); the nearest UAV's gap grows with time (0.1 t - 0.2
+    m); every other column unknown."""
     header = columns([other], n_obstacles=0)
     blank = {name: "nan" for name in header}
     blank.update({"uav_id": str(uav_id), "algorithm": "orca3d", "collided_with": "", "feasible": "", "fallback": "",
@@ -220,7 +221,7 @@ def write_uav_csv(path: Path, uav_id: int, other: int, flight: list[tuple[float,
                   "collision": "0", "out_of_bounds": "0", "low_battery": "0", "ual_state": "4"})
     lines = [",".join(header)]
     for t, role, outcome in flight:
-        row = dict(blank, time=repr(t), role=role, outcome=outcome)
+        row = dict(blank, time=repr(t), role=role, outcome=outcome, nearest_uav_gap=repr(round(0.1 * t - 0.2, 3)))
         lines.append(",".join(row[name] for name in header))
     path.write_text("\n".join(lines) + "\n")
 
@@ -319,6 +320,21 @@ def test_comparison_table_numbers_and_figure(tmp_path):
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == [f.name for f in sorted(files)]
 
 
+def test_several_batches_side_by_side_with_the_minimum_gap_flown_on_paths(tmp_path):
+    orca = flight_metrics.read_batch(orca_dataset(tmp_path), "ORCA-3D")
+    # the gap is 0.1 t - 0.2 m; paths start at t = 1 (simulations 1, 2) and t = 5 (3); the take-off's -0.2 m at
+    # t = 0 is not on a path, and simulation 4 (interrupted) is left out
+    assert orca.min_gaps == pytest.approx([-0.1, -0.1, 0.3]) and orca.min_gap == pytest.approx(-0.1)
+    rl_dir = tmp_path / "rl" / "dataset_1"
+    add_simulation(rl_dir, 1, True, 0, {1: [(3.0, 2.0, "succeeded")], 2: [(4.0, 2.0, "succeeded")]})
+    rl = flight_metrics.read_batch(rl_dir, "RL")
+    table = flight_metrics.side_by_side([orca, rl], "Gym/Crossing")
+    assert "| | ORCA-3D | RL |" in table
+    assert "| collision-free | 2/3 (67%) | 1/1 (100%) |" in table
+    assert "| minimum gap between UAVs (m) | -0.10 (median -0.10) | 0.10 (median 0.10) |" in table
+    assert f"- RL: `{rl_dir}`" in table
+
+
 def test_comparison_without_a_collision_free_orca_run_or_with_other_seeds(tmp_path):
     orca_dir, nn_dir = tmp_path / "o", tmp_path / "n"
     add_simulation(orca_dir, 1, False, 1, {1: [(1.0, 2.0, "collision")]})
@@ -401,6 +417,27 @@ def test_both_batches_get_the_same_seeds_and_the_network_mission(tmp_path):
     assert option(nn, "--search-path") == [out, str(CORPUS.resolve())]
     variant = read(tmp_path / "out" / "missions" / "Gym" / "2UAVs_Crossing_ORCA_nn.json")
     assert variant["State_Machine"][5]["parameters"] == nn_parameters(str(model), 5.0)
+
+
+def test_compare_flies_one_orca_batch_and_each_network_with_the_same_seeds(tmp_path, model):
+    other = make_model(tmp_path / "other")
+    env = dict(os.environ, MAGNA_ROOT=str(stub_root(tmp_path)), FLY_STUB_LOG=str(tmp_path / "calls.jsonl"))
+    command = [sys.executable, "-m", "mlr", "compare", "--world", WORLD, "--mission", MISSION,
+               "--model", f"sup={model}", "--model", f"rl={other}", "--seed", "7", "--n-iter", "3",
+               "--data-root", str(tmp_path / "data"), "-o", str(tmp_path / "out"), "--name", "t"]
+    done = subprocess.run(command, cwd=ROOT, env=env, capture_output=True, text=True, timeout=120)
+    # the stand-in wrote no data: the batches ran, then the table finds no dataset
+    assert done.returncode == 2 and "no summary.csv" in done.stderr, done.stderr
+    argvs = [c["argv"] for c in calls(tmp_path)]
+    assert [option(a, "--name") for a in argvs] == [["t_orca"], ["t_sup_nn"], ["t_rl_nn"]]
+    assert all(option(a, "--seed") == ["7"] and option(a, "--n-iter") == ["3"] for a in argvs)
+    for label, path in (("sup", model), ("rl", other)):
+        variant = read(tmp_path / "out" / label / "missions" / "Gym" / "2UAVs_Crossing_ORCA_nn.json")
+        assert str(path) in json.dumps(variant)
+
+    same = subprocess.run([*command[:8], "--model", f"rl={model}", *command[10:]], cwd=ROOT, env=env,
+                          capture_output=True, text=True, timeout=60)
+    assert same.returncode == 2 and "a label of its own" in same.stderr, same.stderr
 
 
 def test_ctrl_c_stops_the_running_batch_and_starts_no_other(tmp_path, model):

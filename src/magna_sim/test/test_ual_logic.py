@@ -180,3 +180,17 @@ def test_stuck_time_zero_waits_for_ever():
     for t in (0.0, 100.0, 1000.0):
         ual.update(t)
     assert ual.stuck is None and not ual.reached()
+
+
+def test_start_airborne_holds_where_the_vehicle_is_and_a_plane_may_not():
+    vehicle = Vehicle("uav_1", 1, load_airframe("iris"), "light", position=np.array([1.0, 2.0, 3.0]))
+    ual = UalLogic(vehicle)
+    ual.start_airborne()
+    assert ual.state == UalState.FLYING_AUTO
+    assert vehicle.setpoint.mode == SetpointMode.POSITION
+    np.testing.assert_array_equal(vehicle.setpoint.position, [1.0, 2.0, 3.0])
+    ual.set_velocity([1.0, 0.0, 0.0], 0.0)  # accepted, as from any UAV flying auto
+    plane = UalLogic(Vehicle("uav_2", 2, load_airframe("plane"), "fixed_wing", position=np.array([0.0, 0.0, 50.0])))
+    with pytest.raises(CommandRefused, match="fixed wing"):
+        plane.start_airborne()
+    assert plane.state == UalState.UNINITIALIZED

@@ -271,3 +271,26 @@ def test_sensor_readings_draw_position_then_velocity_noise_uav_by_uav():
         assert sim.rng.bit_generator.state == same_seed.bit_generator.state
     finally:
         sim.close()
+
+
+def test_a_light_uav_placed_in_the_air_holds_there_then_flies_as_one_that_took_off(world):
+    flown, flown_ual = airborne(world, "iris", 3.0, uav_id=1, position=(0.0, 0.0, 0.0))
+    placed = world.spawn_uav("uav_2", 2, "iris", "light", [10.0, 0.0, 0.0])
+    world.step()
+    world.place_airborne(2, flown.position + [10.0, 0.0, 0.0], flown.yaw)
+    assert world.ual[2].state == UalState.FLYING_AUTO and not placed.velocity.any()
+    run(world, 2.0)  # both hold: the placed one stays where it was put
+    np.testing.assert_allclose(placed.position - flown.position, [10.0, 0.0, 0.0], atol=0.05)
+    for ual in (flown_ual, world.ual[2]):
+        ual.set_velocity([1.0, 0.5, 0.0], 0.0)
+    run(world, 1.0)  # the same commands from rest: the same motion
+    np.testing.assert_allclose(placed.velocity, flown.velocity, atol=0.02)
+    np.testing.assert_allclose(placed.position - flown.position, [10.0, 0.0, 0.0], atol=0.05)
+
+
+def test_placing_is_refused_for_an_unknown_uav_and_the_dynamic_model(world):
+    world.spawn_uav("uav_1", 1, "iris", "dynamic", [0.0, 0.0, 0.0])
+    with pytest.raises(SpawnError, match="uav_id: 7 is not flying here"):
+        world.place_airborne(7, [0.0, 0.0, 3.0])
+    with pytest.raises(SpawnError, match="only a light UAV can be placed"):
+        world.place_airborne(1, [0.0, 0.0, 3.0])

@@ -160,8 +160,16 @@ def test_default_solver_flies_with_or_without_the_service(caplog):
     with caplog.at_level(logging.WARNING, logger="magna_uav.nai"):
         commands = [nav.velocity(crowd_view(), Goal([10, 0, 5])) for _ in range(2)]
     assert all(np.all(np.isfinite(c.velocity)) and not c.error for c in commands)
-    if not getattr(nav._orca.solver, "using_service", False):
+    if getattr(nav._orca.solver, "using_service", True) is False:
         assert len([r for r in caplog.records if r.levelno == logging.WARNING]) == 1
+
+
+def test_the_reference_chosen_on_purpose_flies_without_a_warning(caplog):
+    nav = NavigationInterface(MAX_SPEED, RADIUS, solver=ReferenceSolver())
+    nav.control("orca3d", "set")
+    with caplog.at_level(logging.WARNING, logger="magna_uav.nai"):
+        command = nav.velocity(crowd_view(), Goal([10, 0, 5]))
+    assert np.all(np.isfinite(command.velocity)) and not caplog.records
 
 
 def test_an_infeasible_program_is_reported():

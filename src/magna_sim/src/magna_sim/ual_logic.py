@@ -133,6 +133,15 @@ class UalLogic:
         self._hold_here()
         self.state = UalState.FLYING_AUTO
 
+    def start_airborne(self) -> None:
+        """FLYING_AUTO at once, holding where the vehicle is: for a learning environment that places a UAV in the
+        air rather than flying its take-off (SimWorld.place_airborne). A fixed wing cannot hold a point: refused."""
+        if self._fixed_wing is not None:
+            raise CommandRefused(f"UAV {self.vehicle.uav_id} is a fixed wing, which cannot start airborne holding a "
+                                 "point; fly its take-off instead")
+        self._hold_here()
+        self.state = UalState.FLYING_AUTO
+
     # --- progress --------------------------------------------------------------------------------------------
     def update(self, time: float) -> None:
         """Called after every physics step with the sim time."""

@@ -179,6 +179,26 @@ class SimWorld:
                 return "uav"
         raise SpawnError(f"name: no model called '{name}'; models: {', '.join(self.names()) or 'none'}")
 
+    def place_airborne(self, uav_id: int, position: Sequence[float], yaw: float = 0.0) -> None:
+        """Put a UAV of the light model at `position` at rest, FLYING_AUTO and holding there, as if it had flown
+        there: how a learning environment starts an episode without flying the take-off. Contacts it had end
+        without a report; new ones from there are reported as usual. The light model only: its state is the
+        pose and velocity, where the dynamic model's controller keeps state of its own."""
+        if uav_id not in self.vehicles:
+            raise SpawnError(f"uav_id: {uav_id} is not flying here; UAVs: {sorted(self.vehicles) or 'none'}")
+        vehicle = self.vehicles[uav_id]
+        if vehicle.flight_model != "light":
+            raise SpawnError(f"uav_id: UAV {uav_id} flies the {vehicle.flight_model} model; only a light UAV can be "
+                             "placed in the air (fly the take-off of the others)")
+        start = _finite("position", position)
+        _finite("yaw", [yaw], size=1)
+        vehicle.position, vehicle.velocity, vehicle.angular_velocity = start.copy(), np.zeros(3), np.zeros(3)
+        vehicle.orientation = np.array([0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)])
+        p.resetBasePositionAndOrientation(vehicle.body_id, start, vehicle.orientation, physicsClientId=self.client)
+        p.resetBaseVelocity(vehicle.body_id, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0], physicsClientId=self.client)
+        self._touching = {pair for pair in self._touching if vehicle.body_id not in pair}
+        self.ual[uav_id].start_airborne()
+
     # --- time ------------------------------------------------------------------------------------------------
     def step(self) -> list[Contact]:
         groups = [(model, [v for v in self.vehicles.values() if v.flight_model == kind])

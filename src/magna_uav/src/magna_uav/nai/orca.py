@@ -25,7 +25,8 @@ The solver is any object with `new_velocity(agent, others, params) -> Solution`;
 default is magna_orca_cpp's `OrcaSolver` (the /magna/orca3d/compute_velocity service when
 it is up, the numpy reference otherwise), or the reference alone when rospy or the
 messages cannot be imported. The first time a solve runs on the reference because the
-service is absent (the solver's `using_service` is False), one warning goes to the
+service is absent (the solver's `using_service` is False; the reference chosen on purpose has
+none), one warning goes to the
 `magna_uav.nai` logger.
 
 Managers sharing a process may share an `OrcaBatcher` (orca_batch.py): the navigator then
@@ -54,9 +55,10 @@ logger = logging.getLogger("magna_uav.nai")
 
 
 class ReferenceSolver:
-    """The numpy reference behind the solver interface (never uses the service)."""
+    """The numpy reference behind the solver interface (never uses the service).
 
-    using_service = False
+    It has no `using_service`: a caller that chose it (the gym, with no ROS) is not told that a service is
+    missing, nor to start one."""
 
     def new_velocity(self, agent: Agent, others: Sequence[Agent], params: Params) -> Solution:
         return reference.new_velocity(agent, others, params)
