@@ -188,7 +188,7 @@ def _help_section(section: list[tuple[int, str]], source: str) -> list[Example]:
 def readmes(root: Path = ROOT) -> list[Path]:
     """The project's READMEs, the root one first (its `make run` makes the data later ones read)."""
     found = [root / "README.md"]
-    for pattern in ("src/*/README.md", "*/README.md"):
+    for pattern in ("src/*/README.md", "*/README.md", "*/*/README.md"):
         for path in sorted(root.glob(pattern)):
             if path not in found and not any(part in {"build", "devel", "install", "logs"} or part.startswith(".")
                                              for part in path.relative_to(root).parts):  # .venv, .pytest_cache

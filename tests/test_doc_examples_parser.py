@@ -79,3 +79,11 @@ def test_the_readmes_are_the_projects_own(tmp_path):
     (tmp_path / "README.md").write_text("x\n")
     found = [path.relative_to(tmp_path).as_posix() for path in doc_examples.readmes(tmp_path)]
     assert found == ["README.md", "src/pkg/README.md", "mlr/README.md"]
+
+
+def test_readmes_are_found_one_and_two_folders_down_but_not_in_hidden_or_build_folders(tmp_path):
+    for folder in ("", "src/pkg", "mlr", "mlr/gym", ".venv/lib", "build/x"):
+        (tmp_path / folder).mkdir(parents=True, exist_ok=True)
+        (tmp_path / folder / "README.md").write_text("# r\n")
+    found = [str(p.relative_to(tmp_path)) for p in doc_examples.readmes(tmp_path)]
+    assert found == ["README.md", "src/pkg/README.md", "mlr/README.md", "mlr/gym/README.md"]
