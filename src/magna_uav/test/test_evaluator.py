@@ -6,6 +6,7 @@ import pytest
 
 from magna_uav.config import configs_from_mission
 from magna_uav.evaluator import Evaluator
+from magna_uav.manager import new_trouble, troubles
 from magna_uav.shapes import Cylinder
 from magna_uav.world_view import AgentState, Obstacle, WorldView
 
@@ -59,6 +60,29 @@ def test_a_collision_is_counted_once_per_contact_episode():
     # episode 1: -0.1 .. -0.01 (0.02 is within the release gap); episode 2: the -0.1 after 0.5
     assert ev.collisions == {"uav_2": 2} and ev.collision_count == 2
     assert ev.min_agent_gap == pytest.approx(-0.2) and ev.steps == 9
+
+
+def test_a_contact_stays_open_until_its_gap_opens_past_the_release_gap():
+    ev = Evaluator(config(), release_gap=0.05)
+    open_episodes = [ev.step(view(others=[(2, (2 * R + gap, 0, 1))])).in_contact
+                     for gap in (0.2, -0.02, 0.03, -0.01, 0.08, 0.02)]
+    assert open_episodes == [[], ["uav_2"], ["uav_2"], ["uav_2"], [], []]
+
+
+def test_a_role_started_just_out_of_contact_is_not_ended_by_the_gap_flickering_around_zero():
+    """Two hovering UAVs just apart when a role starts, their gap dipping below zero and back (the
+    rostest's head-on flight saw it): until the gap opens past the release gap, it is the contact
+    the role started in, and only a new contact after it ends the role."""
+    ev = Evaluator(config(), release_gap=0.05)
+
+    def step(gap):
+        return ev.step(view(others=[(2, (2 * R + gap, 0, 1))]))
+
+    step(-0.1)  # the contact that stopped the last role
+    standing = troubles(step(0.03))  # the next role starts just out of contact
+    assert [new_trouble(step(gap), standing) for gap in (-0.02, 0.04, -0.01)] == [None, None, None]
+    assert new_trouble(step(0.3), standing) is None  # apart: the contact is over
+    assert new_trouble(step(-0.02), standing) == "collision"
 
 
 def test_contacts_with_different_things_count_separately():

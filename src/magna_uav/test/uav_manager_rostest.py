@@ -288,7 +288,9 @@ class UavManagerFlights(unittest.TestCase):
         wait_until_still([self.uav1, self.uav2])
         # Those two poses come from two managers' views of a 4 m/s closing, a step apart under load: they
         # may be just out of contact (0.63 m seen). So UAV 2 backs off and flies through UAV 1 as it hovers:
-        # the contact stops it where its own view was in contact with the UAV 1 that stays put.
+        # the contact stops it where its own view was in contact with the UAV 1 that stays put. Backing off
+        # from hovers that close, the gap may flicker around zero: that is still the contact the role
+        # started in (CI once saw -0.02 m end this goto before the evaluator's release gap counted it so).
         p1 = self.uav1.where()
         goto(self.uav2, p1[0] + 2.0, p1[1], p1[2])
         wait_until_still([self.uav1, self.uav2])

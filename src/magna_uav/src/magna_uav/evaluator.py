@@ -44,6 +44,8 @@ class Evaluation:
     nearest_agent_gap: float = math.inf
     nearest_obstacle_gap: float = math.inf
     collided_with: list[str] = field(default_factory=list)  # "uav_2", obstacle names; nearest first
+    # contact episodes still open: collided_with, and those whose gap has not yet opened past release_gap
+    in_contact: list[str] = field(default_factory=list)
     out_of_bounds: bool = False
     low_battery: bool = False
     gs_critical: bool = False
@@ -131,7 +133,8 @@ class Evaluator:
         reason = "; ".join(text for _, text in found)
 
         return Evaluation(agent_gaps=agent_gaps, obstacle_gaps=obstacle_gaps, nearest_agent_gap=nearest_agent,
-                          nearest_obstacle_gap=nearest_obstacle, collided_with=collided, out_of_bounds=out,
+                          nearest_obstacle_gap=nearest_obstacle, collided_with=collided,
+                          in_contact=sorted(self._in_contact), out_of_bounds=out,
                           low_battery=low, gs_critical=gs_critical_event, battery=battery, outcome=outcome,
                           reason=reason)
 

@@ -61,8 +61,12 @@ class Clock:
 
 
 def troubles(evaluation) -> set[str]:
-    """The evaluation's conditions as names: "collision:<what>" per contact, and the flags."""
-    found = {f"collision:{name}" for name in evaluation.collided_with}
+    """The evaluation's conditions as names: "collision:<what>" per open contact episode, and the flags.
+
+    A contact lasts until its gap opens past the evaluator's release gap, so a gap that flickers
+    around zero at the start of a role stays the contact the role started in, not a new one."""
+    contacts = set(evaluation.collided_with) | set(getattr(evaluation, "in_contact", ()))
+    found = {f"collision:{name}" for name in contacts}
     for flag, name in (("out_of_bounds", "out_of_bounds"), ("gs_critical", "GS_critical_event"),
                        ("low_battery", "low_battery")):
         if getattr(evaluation, flag):
