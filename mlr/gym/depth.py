@@ -35,5 +35,17 @@ class DepthObservation:
         return prepare_depth(swarm.depth_image(j, self._camera, copy), self.height, self.width)
 
 
-def dict_space(vector: gym.spaces.Box, depth: DepthObservation) -> gym.spaces.Dict:
-    return gym.spaces.Dict({"vector": vector, "depth": depth.space()})
+class SwarmObservation:
+    """What UAV j of a swarm observes, and its space: the NAI's input vector, or with `depth=(width, height)`
+    the Dict {"vector", "depth"}. The single-agent and PettingZoo environments share it."""
+
+    def __init__(self, swarm, depth: tuple[int, int] | None = None, depth_fov: float = 90.0):
+        self.swarm = swarm
+        self.depth = DepthObservation(depth, depth_fov) if depth is not None else None
+        vector = gym.spaces.Box(-np.inf, np.inf, (swarm.observation_size,), np.float32)
+        self.space: gym.spaces.Space = (vector if self.depth is None
+                                        else gym.spaces.Dict({"vector": vector, "depth": self.depth.space()}))
+
+    def __call__(self, j: int, copy: int = 0):
+        vector = self.swarm.observation(j, copy)
+        return vector if self.depth is None else {"vector": vector, "depth": self.depth.image(self.swarm, j, copy)}

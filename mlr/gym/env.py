@@ -26,7 +26,7 @@ import numpy as np
 
 from magna_uav.nai.goal import Goal
 from magna_uav.nai.simple import saturate
-from mlr.gym.depth import DepthObservation, dict_space
+from mlr.gym.depth import SwarmObservation
 from mlr.gym.reward import RewardWeights, StepOutcome, reward_terms
 from mlr.gym.scenario import Scenario, load_scenario
 from mlr.gym.swarm import Swarm
@@ -45,9 +45,8 @@ class MagnaNavEnv(gym.Env):
         self.swarm = Swarm(self.scenario, n_neighbors, n_obstacles, neighbor_dist)
         self.max_steps, self.weights = max_steps, weights
         self.max_speed = self.scenario.uavs[LEARNER].max_speed
-        vector = gym.spaces.Box(-np.inf, np.inf, (self.swarm.observation_size,), np.float32)
-        self.depth = DepthObservation(depth, depth_fov) if depth is not None else None
-        self.observation_space = vector if self.depth is None else dict_space(vector, self.depth)
+        self._observe = SwarmObservation(self.swarm, depth, depth_fov)
+        self.observation_space = self._observe.space
         self.action_space = gym.spaces.Box(-self.max_speed, self.max_speed, (3,), np.float32)
         self._others = {j: self.swarm.orca(j) for j in range(len(self.scenario.uavs)) if j != LEARNER}
         self._previous_command = np.zeros(3)
@@ -58,7 +57,7 @@ class MagnaNavEnv(gym.Env):
         self.swarm.start(int(self.np_random.integers(2 ** 31)))
         self._previous_command = np.zeros(3)
         self._steps = 0
-        return self._observe(), {"goal": self.swarm.goal(LEARNER).copy()}
+        return self._observe(LEARNER), {"goal": self.swarm.goal(LEARNER).copy()}
 
     def step(self, action):
         swarm = self.swarm
@@ -72,8 +71,7 @@ class MagnaNavEnv(gym.Env):
         collisions = swarm.fly(commands)
         self._steps += 1
         for j in self._others:  # the others go on to their next goal
-            if swarm.distance(j) <= self.weights.goal_radius:
-                swarm.next_goal(j)
+            swarm.arrive(j, self.weights.goal_radius)
         collided = (0, LEARNER) in collisions
         after = swarm.distance(LEARNER)
         terms = reward_terms(StepOutcome(before, after, swarm.gap(LEARNER), collided, command, self._previous_command,
@@ -81,12 +79,8 @@ class MagnaNavEnv(gym.Env):
         self._previous_command = command
         reached = after <= self.weights.goal_radius and not collided
         info = {"reward_terms": terms, "goal": swarm.goal(LEARNER).copy(), "collided": collided, "reached": reached}
-        return (self._observe(), float(sum(terms.values())), collided or reached,
+        return (self._observe(LEARNER), float(sum(terms.values())), collided or reached,
                 self._steps >= self.max_steps and not (collided or reached), info)
-
-    def _observe(self):
-        vector = self.swarm.observation(LEARNER)
-        return vector if self.depth is None else {"vector": vector, "depth": self.depth.image(self.swarm, LEARNER)}
 
     def close(self) -> None:
         self.swarm.close()

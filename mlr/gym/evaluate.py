@@ -65,9 +65,8 @@ def evaluate(policy: Policy, scenario: Scenario, flights: int = 16, seed: int = 
                     collided[c] = True
                     continue
                 for j in range(uav_count):
-                    if reached[c, j] < goals[j] and swarm.distance(j, c) <= goal_radius:
+                    if reached[c, j] < goals[j] and swarm.arrive(j, goal_radius, c):
                         reached[c, j] += 1
-                        swarm.next_goal(j, c)
         succeeded = int(np.sum(~collided & (reached >= goals).all(axis=1)))
         return Evaluation(flights, succeeded, int(collided.sum()), flights - succeeded - int(collided.sum()),
                           float(min_gap))

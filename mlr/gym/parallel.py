@@ -16,7 +16,7 @@ import numpy as np
 from pettingzoo import ParallelEnv
 
 from magna_uav.nai.simple import saturate
-from mlr.gym.depth import DepthObservation, dict_space
+from mlr.gym.depth import SwarmObservation
 from mlr.gym.reward import RewardWeights, StepOutcome, reward_terms
 from mlr.gym.scenario import Scenario, load_scenario
 from mlr.gym.swarm import Swarm
@@ -34,10 +34,8 @@ class MagnaNavParallelEnv(ParallelEnv):
         self.max_steps, self.weights = max_steps, weights
         self.possible_agents = [f"uav_{uav.id}" for uav in self.scenario.uavs]
         self._index = {name: j for j, name in enumerate(self.possible_agents)}
-        self.depth = DepthObservation(depth, depth_fov) if depth is not None else None
-        vector = gym.spaces.Box(-np.inf, np.inf, (self.swarm.observation_size,), np.float32)
-        self._observation_spaces = {name: vector if self.depth is None else dict_space(vector, self.depth)
-                                    for name in self.possible_agents}
+        self._observe = SwarmObservation(self.swarm, depth, depth_fov)
+        self._observation_spaces = {name: self._observe.space for name in self.possible_agents}
         self._action_spaces = {
             name: gym.spaces.Box(-uav.max_speed, uav.max_speed, (3,), np.float32)
             for name, uav in zip(self.possible_agents, self.scenario.uavs, strict=True)}
@@ -88,10 +86,6 @@ class MagnaNavParallelEnv(ParallelEnv):
         self._previous = commands
         self.agents = [name for name in self.agents if not (terminations[name] or truncations[name])]
         return observations, rewards, terminations, truncations, infos
-
-    def _observe(self, j: int):
-        vector = self.swarm.observation(j)
-        return vector if self.depth is None else {"vector": vector, "depth": self.depth.image(self.swarm, j)}
 
     def close(self) -> None:
         self.swarm.close()

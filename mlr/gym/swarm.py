@@ -36,6 +36,7 @@ class Swarm:
         self._positions = self.fleet.positions()  # (K, M, 3), read once per control step
         self._velocities = self.fleet.velocities()
         self._views: dict[tuple[int, int], WorldView] = {}  # built at most once per control step
+        self._gaps: dict[tuple[int, int], float] = {}  # measured at most once per control step, as the views
 
     def close(self) -> None:
         self.fleet.close()
@@ -101,12 +102,20 @@ class Swarm:
     def _read(self) -> None:
         self._positions, self._velocities = self.fleet.positions(), self.fleet.velocities()
         self._views.clear()
+        self._gaps.clear()
 
     def goal(self, j: int, copy: int = 0) -> np.ndarray:
         return self._goals[copy, j, self._next_goal[copy, j]]
 
     def next_goal(self, j: int, copy: int = 0) -> None:
         self._next_goal[copy, j] = min(self._next_goal[copy, j] + 1, GOALS_PER_EPISODE - 1)
+
+    def arrive(self, j: int, radius: float, copy: int = 0) -> bool:
+        """Whether UAV j is within `radius` of its goal; if so, it moves on to its next one (a mission's path)."""
+        arrived = self.distance(j, copy) <= radius
+        if arrived:
+            self.next_goal(j, copy)
+        return arrived
 
     def distance(self, j: int, copy: int = 0) -> float:
         return float(np.linalg.norm(self._positions[copy, j] - self.goal(j, copy)))
@@ -126,9 +135,12 @@ class Swarm:
 
     def gap(self, j: int, copy: int = 0) -> float:
         """m from UAV j's safety sphere to the nearest other UAV's or obstacle's; inf when there is none."""
-        view = self.view(j, copy)
-        gaps = [gap for _, gap in view.nearest_agents(1)] + [gap for _, gap in view.nearest_obstacles(1)]
-        return min(gaps) if gaps else float("inf")
+        gap = self._gaps.get((copy, j))
+        if gap is None:
+            view = self.view(j, copy)
+            gaps = [gap for _, gap in view.nearest_agents(1)] + [gap for _, gap in view.nearest_obstacles(1)]
+            gap = self._gaps[(copy, j)] = min(gaps) if gaps else float("inf")
+        return gap
 
     def observation(self, j: int, copy: int = 0) -> np.ndarray:
         vector = build_inputs(self.view(j, copy), Goal(self.goal(j, copy)), ROLE, self.n_neighbors,

@@ -82,10 +82,9 @@ class SwarmVecEnv(VecEnv):
                 terms = reward_terms(StepOutcome(before[c, j], after, swarm.gap(j, c), collided, commands[c, j],
                                                  self._previous[c, j], self.max_speed), self.weights)
                 rewards[i] = sum(terms.values())
-                reached = after <= self.weights.goal_radius and not collided
+                # a UAV that reached its goal flies on to the next, in the same episode, as along a mission's path
+                reached = not collided and swarm.arrive(j, self.weights.goal_radius, c)
                 infos[i] = {"reward_terms": terms, "collided": collided, "reached": reached}
-                if reached:
-                    swarm.next_goal(j, c)  # flies on, in the same episode, as along a mission's path
                 if crashed or out_of_time:
                     dones[i] = True
                     infos[i]["terminal_observation"] = swarm.observation(j, c)
