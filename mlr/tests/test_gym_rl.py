@@ -6,7 +6,9 @@ from pathlib import Path
 
 import pytest
 
-from mlr.gym.rl import RlConfig, RlError, latest_checkpoint, load_config, prepare_output, train
+from mlr.gym.ppo_training import latest_checkpoint, train
+from mlr.gym.rl import prepare_output
+from mlr.gym.rl_config import RlConfig, RlError, load_config
 from tests.support import CORPUS
 
 SHIPPED = Path(__file__).resolve().parents[1] / "configs" / "rl_four_cylinders.yaml"
