@@ -76,8 +76,8 @@ def run(args) -> int:
         for label, model in args.model:  # every check first (prepare): nothing flies if one network is wrong
             plans.append(prepare(dataclasses.replace(base, model=model, name=f"{args.name}_{label}",
                                                      output=out / label)))
-        for plan in plans[1:]:
-            plan.orca_argv = None  # the first plan flies the one ORCA-3D batch
+        # the first plan flies the one ORCA-3D batch; the others fly only their network (as dagger's evaluation)
+        plans[1:] = [dataclasses.replace(plan, orca_argv=None) for plan in plans[1:]]
         failed = False
         for plan in plans:
             status = fly_batches(plan)

@@ -398,8 +398,10 @@ class NavigationInterface:
         or the teacher's answer."""
         n_obstacles = self.params("orca3d")[ORCA_OBSTACLES]
         assert isinstance(n_obstacles, int)  # from _whole, or N_neighbors_aware's default, which is an int too
-        return self._orca.velocity(view, self._preferred(view, goal), params or self.orca_params(), n_obstacles,
-                                   self.safety_radius, self.max_speed)
+        if params is None:
+            params = self.orca_params()
+        return self._orca.velocity(view, self._preferred(view, goal), params, n_obstacles, self.safety_radius,
+                                   self.max_speed)
 
     def _collides(self, velocity: np.ndarray, view: WorldView, teacher: OrcaResult, params: Params) -> bool:
         """Would `velocity` (saturated as it would be sent) collide within ORCA-3D's horizon (`params`, the
