@@ -67,7 +67,7 @@ def browser():
 
     assert CHROMIUM.is_file(), f"{CHROMIUM} is missing: make setup installs Debian's chromium"
     with sync_playwright() as playwright:
-        chromium = playwright.chromium.launch(executable_path=str(CHROMIUM), args=["--no-sandbox"])
+        chromium = playwright.chromium.launch(executable_path=str(CHROMIUM), args=["--no-sandbox", "--enable-unsafe-swiftshader", "--use-angle=swiftshader"])
         yield chromium
         chromium.close()
 
