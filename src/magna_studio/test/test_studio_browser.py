@@ -174,7 +174,8 @@ def test_a_run_started_from_the_page_is_watched_and_commanded(page, studio, shoo
     page.wait_for_function("() => document.querySelector('[data-testid=run-active]').textContent.includes('crossing')",
                            timeout=RUN_GUARD_MS)
     assert page.locator(f"{tid('run-graph')} svg .active").count() >= 1
-    assert page.inner_text(f"{tid('uav-row-1')} [data-cell=role]") == "path"
+    role = f"{tid('uav-row-1')} [data-cell=role]"  # the role cell follows the manager's own steps
+    page.wait_for_function(f"() => document.querySelector(\"{role}\").textContent === 'path'", timeout=GUARD_MS)
 
     # A question is accepted and answered; a command for a UAV the mission does not have is refused.
     page.select_option(tid("command-intent"), "parameters")

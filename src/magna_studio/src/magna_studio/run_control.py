@@ -183,6 +183,7 @@ class StudioRun:
             return {"state": state, "folder": str(self._folder), "batch": written,
                     "exit_status": self._exit_status, "log": list(self._run.log),
                     "bridge_url": self._bridge_url, "bridge_error": self._bridge_error,
+                    "bridge_pid": self._bridge.process.pid if self._bridge is not None else None,
                     "master_uri": self._bridge_master}
 
     def _read_status(self) -> dict | None:
