@@ -16,12 +16,9 @@ from __future__ import annotations
 
 import argparse
 import os
-import re
 import statistics
-import subprocess
 import sys
 import tempfile
-import threading
 import time
 from pathlib import Path
 
@@ -31,10 +28,9 @@ if __name__ == "__main__":  # `python bench/studio_bridge.py` from any Python ru
 
     run_script_in_workspace(__file__, modules=("playwright", "tornado", "magna_studio"))
 
-from magna_common.processes import end_process_group  # noqa: E402
+from magna_studio.headless import RunningStudio, launch_chromium  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
-CHROMIUM = "/usr/bin/chromium"
 TARGET_HZ = 10.0  # the issue: UAV positions in the 3-D view at 10 Hz or more
 MISSIONS = {10: "Gym/10UAVs_Crossing_ORCA", 2: "Gym/2UAVs_Crossing_ORCA"}
 WORLD = "Gym/Central_Obstacle_Torus"
@@ -72,29 +68,6 @@ def tree(root: int) -> list[int]:
     return found
 
 
-def start_studio(data_root: Path) -> tuple[subprocess.Popen, str]:
-    process = subprocess.Popen([str(ROOT / "magna"), "studio", "--port", "0", "--search-path", str(ROOT / "bench"),
-                                "--data-root", str(data_root)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                               text=True, stdin=subprocess.DEVNULL, start_new_session=True)
-    found: list[str] = []
-    ready = threading.Event()
-
-    def read():
-        assert process.stdout is not None
-        for line in process.stdout:
-            match = re.match(r"studio: (http://\S+)", line)
-            if match:
-                found.append(match.group(1))
-                ready.set()
-        ready.set()
-
-    threading.Thread(target=read, daemon=True).start()
-    if not ready.wait(60) or not found:
-        end_process_group(process)
-        raise SystemExit("bench: magna studio did not start; see `./magna studio --help`")
-    return process, found[0]
-
-
 def measure(page, studio_pid: int, uavs: int, seconds: float) -> dict:
     def counters() -> dict[int, int]:
         return {int(k): v for k, v in page.evaluate(
@@ -121,18 +94,18 @@ def measure(page, studio_pid: int, uavs: int, seconds: float) -> dict:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seconds", type=float, default=20.0, help="wall seconds measured (default 20)")
-    parser.add_argument("--uavs", type=int, choices=sorted(MISSIONS), default=10, help="UAVs in the mission (default 10)")
+    parser.add_argument("--uavs", type=int, choices=sorted(MISSIONS), default=10,
+                        help="UAVs in the mission (default 10)")
     args = parser.parse_args()
     from playwright.sync_api import sync_playwright
 
     with tempfile.TemporaryDirectory(prefix="magna_bench_studio_") as data_root:
-        studio, url = start_studio(Path(data_root))
+        studio = RunningStudio("--search-path", str(ROOT / "bench"), "--data-root", data_root)
         try:
             with sync_playwright() as playwright:
-                browser = playwright.chromium.launch(executable_path=CHROMIUM, args=[
-                    "--no-sandbox", "--enable-unsafe-swiftshader", "--use-angle=swiftshader"])
+                browser = launch_chromium(playwright)
                 page = browser.new_page(viewport={"width": 1500, "height": 950})
-                page.goto(url)
+                page.goto(studio.url)
                 page.wait_for_selector("body[data-ready=true]")
                 for tab, spec in (("world", WORLD), ("mission", MISSIONS[args.uavs])):
                     page.click(f"[data-testid=tab-{tab}]")
@@ -144,11 +117,11 @@ def main() -> int:
                 page.click("[data-testid=tab-run]")
                 page.fill("[data-testid=run-rtf]", "1")
                 page.click("[data-testid=run-start]")
-                figures = measure(page, studio.pid, args.uavs, args.seconds)
+                figures = measure(page, studio.process.pid, args.uavs, args.seconds)
                 page.click("[data-testid=run-stop]")
                 browser.close()
         finally:
-            end_process_group(studio, grace=60.0)
+            studio.stop()
     rates = figures["rates"]
     slowest = min(rates)
     print(f"studio live view, {args.uavs} UAVs at real time, {figures['wall']:.0f} s measured "

@@ -160,12 +160,13 @@ def test_a_run_started_from_the_page_is_watched_and_commanded(page, studio, shoo
     page.click(tid("tab-run"))
     page.fill(tid("run-rtf"), "1")
     page.click(tid("run-start"))
-    page.wait_for_function("() => document.querySelector('[data-testid=run-bridge]').textContent.startsWith('connected')",
-                           timeout=RUN_GUARD_MS)
+    page.wait_for_function("() => document.querySelector('[data-testid=run-bridge]').textContent"
+                           ".startsWith('connected')", timeout=RUN_GUARD_MS)
 
     # The UAVs move: UAV 1's shown position changes, and the machine goes from state to state.
     position = f"{tid('uav-row-1')} [data-cell=position]"
-    page.wait_for_function(f"() => /\\d/.test(document.querySelector(\"{position}\").textContent)", timeout=RUN_GUARD_MS)
+    page.wait_for_function(f"() => /\\d/.test(document.querySelector(\"{position}\").textContent)",
+                           timeout=RUN_GUARD_MS)
     first = page.inner_text(position)
     page.wait_for_function(f"p => document.querySelector(\"{position}\").textContent !== p", arg=first,
                            timeout=RUN_GUARD_MS)
