@@ -56,7 +56,8 @@ def test_subscribe_defaults_and_the_type_comes_from_the_allow_list():
 
 @pytest.mark.parametrize("topic", ["/uav_1/ual/pose", "/uav_7/ual/state", "/uav_42/mavros/battery",
                                    "/magna/uav_3/navigation", "/magna/sm/mission/status",
-                                   "/magna/sm/mission/structure", "/magna/gs/critical_event", "/clock"])
+                                   "/magna/sm/mission/structure", "/magna/gs/critical_event",
+                                   "/magna/gs/critical_events", "/clock"])
 def test_every_allowed_topic_can_be_watched(topic):
     request = parse_request(frame(op="subscribe", topic=topic))
     assert isinstance(request, Subscribe) and request.type == allowed.topic_type(topic)

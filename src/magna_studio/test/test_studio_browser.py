@@ -203,6 +203,18 @@ def test_a_run_started_from_the_page_is_watched_and_commanded(page, studio, shoo
     page.wait_for_function("() => document.querySelector('[data-testid=command-answer]').textContent"
                            ".includes('mission resumed')", timeout=GUARD_MS)
 
+    # The operator's critical event: listed as it is raised, and as Resume clears it (the mission has taken
+    # its safety branch meanwhile, and lands).
+    page.select_option(tid("command-intent"), "mission")
+    page.select_option(tid("command-action"), "critical")
+    page.click(tid("command-send"))
+    events = tid("run-events")
+    page.wait_for_function(f"() => document.querySelector('{events}').textContent"
+                           ".includes('critical event is raised')", timeout=GUARD_MS)
+    page.click(tid("run-resume"))
+    page.wait_for_function(f"() => document.querySelector('{events}').textContent"
+                           ".includes('critical event is cleared')", timeout=GUARD_MS)
+
     # Afterwards: the dataset's reports, served by the studio.
     page.wait_for_selector(f"{tid('run-progress')}[data-state=finished]", timeout=RUN_GUARD_MS)
     report = page.wait_for_selector(f"{tid('run-reports')} a[href$='report.html']", timeout=GUARD_MS)

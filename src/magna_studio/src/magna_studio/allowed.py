@@ -49,7 +49,10 @@ TOPICS: tuple[AllowedTopic, ...] = (
     AllowedTopic(names.sm_topic("mission", "status"), "magna_msgs/SMStatus", "the mission state machine's status"),
     AllowedTopic(names.sm_topic("mission", "structure"), "magna_msgs/SMStructure",
                  "the mission state machine's containers"),
-    AllowedTopic(names.GS_CRITICAL_EVENT, "std_msgs/String", "the ground station's critical events"),
+    AllowedTopic(names.GS_CRITICAL_EVENT, "std_msgs/String",
+                 "the ground station's critical event to every UAV (\"operator\" while the operator's is raised)"),
+    AllowedTopic(names.GS_CRITICAL_EVENTS, "magna_msgs/CriticalEvent",
+                 "each critical event the ground station records: collision, low battery, link or manager lost"),
     AllowedTopic("/clock", "rosgraph_msgs/Clock", "the simulated time"),
 )
 

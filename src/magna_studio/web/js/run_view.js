@@ -227,7 +227,14 @@ export class RunView {
         (msg) => this.setCell(id, "role", msg.role), 200);
     }
     this.bridge.subscribe("/magna/sm/mission/status", "magna_msgs/SMStatus", (msg) => this.onMachine(msg));
-    this.bridge.subscribe("/magna/gs/critical_event", "std_msgs/String", (msg) => this.onEvent(msg.data));
+    this.bridge.subscribe("/magna/gs/critical_events", "magna_msgs/CriticalEvent", (msg) => this.onEvent(
+      `UAV ${msg.uav_id} ${msg.event} at ${msg.sim_time.toFixed(1)} s${msg.detail ? ` (${msg.detail})` : ""}`));
+    // the operator's own critical event is not a UAV's: it is said only on the topic every manager hears
+    this.bridge.subscribe("/magna/gs/critical_event", "std_msgs/String", (msg) => {
+      if (msg.data === "operator") this.onEvent("the operator's critical event is raised (until Resume)");
+      else if (msg.data === "" && this.operatorCritical) this.onEvent("the operator's critical event is cleared");
+      this.operatorCritical = msg.data === "operator";
+    });
   }
 
   disconnect() {
@@ -240,7 +247,6 @@ export class RunView {
     if (!this.uavs.has(id)) {
       const row = document.createElement("tr");
       row.dataset.testid = `uav-row-${id}`;
-      row.setAttribute("data-testid", `uav-row-${id}`);
       for (const cell of ["id", "role", "state", "battery", "position"]) {
         const td = document.createElement("td");
         td.dataset.cell = cell;
@@ -280,7 +286,8 @@ export class RunView {
 
   onEvent(text) {
     const item = document.createElement("li");
-    item.textContent = `${new Date().toLocaleTimeString()} ${text}`;
+    item.dataset.testid = "run-event";
+    item.textContent = text;
     el(this.root, "run-events").prepend(item);
   }
 
