@@ -31,9 +31,10 @@ POSE_TOPIC = names.ual(1, "pose")
 class BridgeNode:
     """The node under test, its stdout drained (rospy logs there too) and searchable."""
 
-    def __init__(self, ros_master, *options: str):
-        self.process = ros_master.spawn(["rosrun", "magna_studio", "bridge", "--port", "0", *options],
-                                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    def __init__(self, ros_master, *options: str,
+                 argv: tuple[str, ...] = ("rosrun", "magna_studio", "bridge", "--port", "0")):
+        self.process = ros_master.spawn([*argv, *options], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                        text=True)
         self.lines: list[str] = []
         self._new = queue.Queue()
         threading.Thread(target=self._drain, daemon=True).start()
@@ -147,6 +148,28 @@ def test_poses_arrive_as_publish_ops_to_every_page_through_one_subscriber(bridge
         run(scenario())
     finally:
         publisher.unregister()
+
+
+def test_bridge_launch_starts_the_node_for_a_stack_started_by_hand(ros_master, rospy_node):
+    rospy = rospy_node
+    node = BridgeNode(ros_master, argv=("roslaunch", "magna_studio", "bridge.launch", "port:=0"))
+    token = f"launch-{uuid.uuid4().hex[:8]}"
+    publisher = rospy.Publisher(POSE_TOPIC, PoseStamped, queue_size=10)
+
+    async def scenario():
+        connection = await websocket_connect(node.url)
+        await send(connection, op="subscribe", id="s1", topic=POSE_TOPIC)
+        await until(lambda: publisher.get_num_connections() >= 1, "the launched bridge to subscribe")
+        publisher.publish(pose(1.5, token))
+        message = await receive(connection, is_pose(token), "the pose through the launched bridge")
+        assert message["msg"]["pose"]["position"]["x"] == 1.5
+        connection.close()
+
+    try:
+        run(scenario())
+    finally:
+        publisher.unregister()
+        node.stop()
 
 
 def test_the_throttle_holds_and_the_newest_pose_still_arrives(bridge, rospy_node):
