@@ -74,11 +74,11 @@ def run(args) -> int:
                                origin=url.rstrip("/"))
         server = tornado.httpserver.HTTPServer(make_app(Studio(search_path, data_root, studio_run, hosts)))
         server.add_sockets(sockets)
-        print(f"studio: {url}", flush=True)
         stop = asyncio.Event()
         loop = asyncio.get_running_loop()
         for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
             loop.add_signal_handler(sig, stop.set)
+        print(f"studio: {url}", flush=True)  # only now: from here on, Ctrl-C ends the studio in order
         try:
             await stop.wait()
         finally:

@@ -100,12 +100,25 @@ class FilesHandler(ApiHandler):
         await self.answer(lambda: {"files": documents.list_files(kind, self.studio.search_path)})
 
 
-class WorldHandler(ApiHandler):
+def _seed(body: dict) -> int:
+    seed = body.get("seed", 0)
+    if isinstance(seed, bool) or not isinstance(seed, int):
+        raise tornado.web.HTTPError(400, reason="seed: give a whole number (the world's lay-out seed)")
+    return seed
+
+
+class DocumentHandler(ApiHandler):
+    """What the world and mission routes share: saving a document."""
+
+    async def save(self, body: dict) -> None:
+        data, path, overwrite = _document(body), Path(_text(body, "path")).expanduser(), body.get("overwrite") is True
+        await self.answer(lambda: {"path": str(documents.save_document(data, path, overwrite))})
+
+
+class WorldHandler(DocumentHandler):
     async def post(self, action: str) -> None:
         body, search = self.body(), self.studio.search_path
-        seed = body.get("seed", 0)
-        if isinstance(seed, bool) or not isinstance(seed, int):
-            raise tornado.web.HTTPError(400, reason="seed: give a whole number")
+        seed = _seed(body)
         if action == "open":
             spec = _text(body, "spec")
             await self.answer(lambda: world_design.open_world(spec, search, seed))
@@ -114,20 +127,14 @@ class WorldHandler(ApiHandler):
         elif action == "check":
             data, source = _document(body), body.get("source") or "world.json"
             await self.answer(lambda: world_design.check_world(data, str(source), search, seed))
-        else:  # save
-            await self._save(body)
-
-    async def _save(self, body: dict) -> None:
-        data, path, overwrite = _document(body), Path(_text(body, "path")).expanduser(), body.get("overwrite") is True
-        await self.answer(lambda: {"path": str(documents.save_document(data, path, overwrite))})
+        else:
+            await self.save(body)
 
 
-class MissionHandler(WorldHandler):
+class MissionHandler(DocumentHandler):
     async def post(self, action: str) -> None:
         body, search = self.body(), self.studio.search_path
-        seed = body.get("seed", 0)
-        if isinstance(seed, bool) or not isinstance(seed, int):
-            raise tornado.web.HTTPError(400, reason="seed: give a whole number")
+        seed = _seed(body)
         if action == "open":
             spec = _text(body, "spec")
             await self.answer(lambda: mission_design.open_mission(spec, search))
@@ -148,7 +155,7 @@ class MissionHandler(WorldHandler):
 
             await self.answer(check)
         else:
-            await self._save(body)
+            await self.save(body)
 
 
 class StateTypesHandler(ApiHandler):

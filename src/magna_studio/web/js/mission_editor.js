@@ -3,6 +3,7 @@
 // server, and check it live against the world open in the World view (its poses are offered in pose fields).
 
 import * as api from "./api.js";
+import { byTestId } from "./dom.js";
 import { countByItem, renderDiagnosticsList, showFieldErrors, summarise } from "./diagnostics.js";
 import { setUpFilePicker } from "./file_picker.js";
 import { BoundForm, objectErrorsRow } from "./form.js";
@@ -14,14 +15,13 @@ import {
   MODES, newAgent, newContainer, newState, OUTCOME_CALLBACKS, ACTION_OUTCOMES, CALLBACK_OUTCOMES, outcomesOf,
   readStateTypes,
 } from "./mission_schema.js";
-import { defaultSavePath, saveWithConfirmation } from "./save.js";
+import { defaultSavePath, saveFromToolbar } from "./save.js";
 import { session } from "./session.js";
 import { showError, showStatus } from "./status.js";
 import { Tree } from "./tree.js";
 
 const ROOT = ""; // the tree's root item: the mission itself (agents and top-level keys)
 const STATES = "State_Machine";
-const byTestId = (id) => document.querySelector(`[data-testid="${id}"]`);
 
 /** Keys of a state the form lays out itself (the rest are shown as JSON). */
 const NODE_KEYS = new Set(["type", "name", "state_type", "parameters", "outcomes", "ids", "ids_var", "occurrencies",
@@ -147,23 +147,10 @@ export class MissionEditor {
   }
 
   async save() {
-    if (!this.doc) return showStatus("nothing to save: open or create a mission first", "error");
-    const input = byTestId("mission-save-path");
-    const path = input.value.trim();
-    if (!path) {
-      input.focus();
-      return showStatus("give the file to save the mission to (Save as)", "error");
-    }
-    try {
-      const saved = await saveWithConfirmation(api.saveMission, this.doc, path);
-      if (saved === null) return showStatus(`not saved: ${path} kept as it was`);
-      this.path = saved;
-      byTestId("mission-saved").textContent = `saved ${saved}`;
-      this.#publish();
-      showStatus(`mission saved to ${saved}`, "ok");
-    } catch (error) {
-      showError(error, "cannot save the mission");
-    }
+    const saved = await saveFromToolbar("mission", api.saveMission, this.doc);
+    if (saved === null) return;
+    this.path = saved;
+    this.#publish();
   }
 
   #load(data, path, name, schema, changes) {

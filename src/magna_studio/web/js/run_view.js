@@ -5,6 +5,7 @@
 // resume. After the run, link its reports.
 
 import { BridgeClient } from "./bridge_client.js";
+import { byTestId } from "./dom.js";
 
 const STATUS_PERIOD_MS = 500;
 const POSE_THROTTLE_MS = 50; // 20 Hz per UAV: the view asks for more than the 10 Hz the issue wants
@@ -20,7 +21,7 @@ const ACTIONS = {
 };
 
 function el(root, testid) {
-  return root.querySelector(`[data-testid="${testid}"]`);
+  return byTestId(testid, root);
 }
 
 function agentsOf(mission) {

@@ -3,12 +3,13 @@
 // scene is redrawn and each diagnostic is shown on its field and in the list.
 
 import * as api from "./api.js";
+import { byTestId } from "./dom.js";
 import { countByItem, renderDiagnosticsList, showFieldErrors, summarise } from "./diagnostics.js";
 import { setUpFilePicker } from "./file_picker.js";
 import { BoundForm, objectErrorsRow } from "./form.js";
 import { childPath, getAt, nearestPath, parsePath, formatPath } from "./json_path.js";
 import { LiveCheck } from "./live_check.js";
-import { defaultSavePath, saveWithConfirmation } from "./save.js";
+import { defaultSavePath, saveFromToolbar } from "./save.js";
 import { session } from "./session.js";
 import { showError, showStatus } from "./status.js";
 import { Tree } from "./tree.js";
@@ -19,7 +20,6 @@ import {
 import { WorldView } from "./world_view.js";
 
 const ROOT = "scenario";
-const byTestId = (id) => document.querySelector(`[data-testid="${id}"]`);
 
 /** The kind of part a tree path names: scenario, volume, geometry or poseSet. */
 function partKind(path) {
@@ -91,23 +91,10 @@ export class WorldEditor {
   }
 
   async save() {
-    if (!this.doc) return showStatus("nothing to save: open or create a world first", "error");
-    const input = byTestId("world-save-path");
-    const path = input.value.trim();
-    if (!path) {
-      input.focus();
-      return showStatus("give the file to save the world to (Save as)", "error");
-    }
-    try {
-      const saved = await saveWithConfirmation(api.saveWorld, this.doc, path);
-      if (saved === null) return showStatus(`not saved: ${path} kept as it was`);
-      this.path = saved;
-      byTestId("world-saved").textContent = `saved ${saved}`;
-      this.#publish();
-      showStatus(`world saved to ${saved}`, "ok");
-    } catch (error) {
-      showError(error, "cannot save the world");
-    }
+    const saved = await saveFromToolbar("world", api.saveWorld, this.doc);
+    if (saved === null) return;
+    this.path = saved;
+    this.#publish();
   }
 
   #load(data, path, name, changes) {
