@@ -3,7 +3,8 @@ import threading
 
 import pytest
 
-from magna_studio.bridge import DEFAULT_ORIGINS, CallPool, OriginPolicy, Outbox, OutboxFull, Throttle, url_of
+from magna_studio.bridge import DEFAULT_ORIGINS, url_of
+from magna_studio.traffic import CallPool, OriginPolicy, Outbox, OutboxFull, Throttle
 
 GUARD = 30.0  # s: a guard against hangs, not a speed expectation
 
