@@ -65,4 +65,23 @@ if [ ! -f devel/setup.bash ] || [ ! -f "$stamp" ] || [ -n "$(build_inputs)" ]; t
   catkin build --no-status --summarize -j"$(nproc)"
   touch "$stamp"
 fi
+# --- 4. The studio's page assets (npm, from the registry at set-up time only) ------
+web=src/magna_studio/web
+lock_hash=$(sha256sum "$web/package-lock.json" | cut -d' ' -f1)
+if [ "$(cat "$web/node_modules/.magna_lock.sha256" 2>/dev/null || true)" != "$lock_hash" ]; then
+  if ! command -v npm >/dev/null; then
+    if [ "$(id -u)" -ne 0 ]; then
+      echo "setup: npm is missing; install it (sudo apt-get install nodejs npm), then run 'make setup' again" >&2
+      exit 1
+    fi
+    say "installing nodejs and npm (the studio's page assets come from the npm registry)"
+    apt-get update && DEBIAN_FRONTEND=noninteractive apt-get install -y --no-install-recommends nodejs npm
+  fi
+  say "installing the studio's page assets (npm ci in $web)"
+  (cd "$web" && npm ci --no-audit --no-fund --loglevel=error)
+  # three's package marks some of its sources executable; they are data the page loads, and catkin_lint
+  # (make test) refuses executables a package does not install
+  find "$web/node_modules" -path '*/.bin' -prune -o -type f -perm /111 -exec chmod a-x {} +
+  echo "$lock_hash" > "$web/node_modules/.magna_lock.sha256"
+fi
 say "ready: ./magna --help, make run, make test"

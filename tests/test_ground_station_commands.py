@@ -44,11 +44,12 @@ def operator_session(data_dir: Path) -> None:
     pytest process already has one on another master)."""
     import rospy
     from geometry_msgs.msg import PoseStamped
-    from magna_msgs.msg import NamedValue, SMStatus
-    from magna_msgs.srv import GroundStationCommand
+    from magna_msgs.msg import CriticalEvent, NamedValue, SMStatus
+    from magna_msgs.srv import GroundStationCommand, StateActualization
 
     rospy.init_node("operator", anonymous=True, disable_signals=True)
-    seen = {"states": [], "z": None}
+    seen = {"states": [], "z": None, "events": []}
+    rospy.Subscriber("/magna/gs/critical_events", CriticalEvent, lambda msg: seen["events"].append(msg))
     rospy.Subscriber("/magna/sm/mission/status", SMStatus,
                      lambda msg: seen["states"].extend(msg.active_states) if msg.path == "/MISSION" else None)
     rospy.Subscriber("/uav_1/ual/pose", PoseStamped, lambda msg: seen.update(z=msg.pose.position.z))
@@ -76,6 +77,12 @@ def operator_session(data_dir: Path) -> None:
     moved = ask("basic_action", "move", "1", direction="up", distance=1.0)
     assert moved.accepted, moved.message
     wall_wait(lambda: seen["z"] is not None and seen["z"] > start + 0.8, "UAV 1 to climb 1 m", 60.0)
+
+    # A critical event a manager reports is on /magna/gs/critical_events at once (the studio lists them).
+    report = rospy.ServiceProxy("/magna/gs/state_actualization", StateActualization)
+    assert report(id=2, state="hovering", critical_event="low_battery").success
+    wall_wait(lambda: any(e.uav_id == 2 and e.event == "low_battery" and e.detail == "hovering" and e.sim_time > 0
+                          for e in seen["events"]), "the low battery on /magna/gs/critical_events", 30.0)
 
     assert ask("mission", "resume", "all").accepted
     rospy.signal_shutdown("operator done")

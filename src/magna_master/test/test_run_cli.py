@@ -187,6 +187,32 @@ def test_magna_run_prints_the_table_and_where_the_data_is(corpus, tmp_path, caps
 
 
 @pytest.mark.ros
+def test_the_status_file_follows_the_batch_with_each_simulations_master(corpus, tmp_path, capsys, leak_token,
+                                                                         stand_in):
+    status_file = tmp_path / "status.json"
+    command = shlex.join(stand_in("ok", fail_seeds="7"))
+    status = cli.main(run_args(corpus, tmp_path / "data", "--n-iter", "2", "--seed", "5", "--status-file",
+                               str(status_file), "--launch-command", command))
+    assert status == 0
+    written = json.loads(status_file.read_text())
+    assert (written["state"], written["exit_status"], written["total"], written["done"], written["succeeded"],
+            written["running"]) == ("finished", 0, 2, 2, 1, [])
+    assert written["dataset_dir"] == str(dataset(tmp_path / "data"))
+    assert [(r["id"], r["success"], r["outcome"]) for r in written["results"]] == [(1, True, "succeeded"),
+                                                                                (2, False, "collision")]
+    for result in written["results"]:  # the master each simulation ran on, as its ground station saw it
+        seen = json.loads((Path(result["directory"]) / "stand_in.json").read_text())
+        assert result["master_uri"] == seen["master_uri"]
+    assert len({r["master_uri"] for r in written["results"]}) == 2  # a cold start per simulation
+
+
+def test_a_status_file_in_a_missing_folder_is_refused_before_anything_starts(corpus, tmp_path, capsys):
+    status = cli.main(run_args(corpus, tmp_path / "data", "--status-file", str(tmp_path / "nowhere" / "s.json")))
+    assert status == 2 and "--status-file" in capsys.readouterr().err
+    assert not (tmp_path / "data").exists()
+
+
+@pytest.mark.ros
 def test_a_crashing_ground_station_makes_magna_run_fail(corpus, tmp_path, capsys, leak_token, stand_in):
     status = cli.main(run_args(corpus, tmp_path / "data", "--skip-save",
                                "--launch-command", shlex.join(stand_in("crash"))))

@@ -51,6 +51,7 @@ GS_COMMAND = "/magna/gs/command"
 GS_STOP = "/magna/gs/stop"
 GS_CONTINUE = "/magna/gs/continue"
 GS_CRITICAL_EVENT = "/magna/gs/critical_event"
+GS_CRITICAL_EVENTS = "/magna/gs/critical_events"  # magna_msgs/CriticalEvent: each one the ground station records
 GS_STATE_ACTUALIZATION = "/magna/gs/state_actualization"
 
 SIM_SPAWN_MODEL = "/magna/sim/spawn_model"

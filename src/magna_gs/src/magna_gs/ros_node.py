@@ -51,6 +51,7 @@ from magna_common.ros_names import (
     GS_COMMAND,
     GS_CONTINUE,
     GS_CRITICAL_EVENT,
+    GS_CRITICAL_EVENTS,
     GS_STATE_ACTUALIZATION,
     GS_STOP,
     HYPERPARAMETERS,
@@ -99,6 +100,8 @@ Services: /magna/gs/state_actualization (StateActualization, from the UAV manage
           /magna/gs/stop (std_srvs/Trigger: end the mission now, then finish as usual)
           /magna/gs/continue (std_srvs/Trigger: the operator's button for `wait` states)
 Topics:   /magna/gs/critical_event (std_msgs/String) to every UAV manager
+          /magna/gs/critical_events (magna_msgs/CriticalEvent): each critical event as the ground station
+          records it (a manager's collision or low battery, a link or a manager lost), for operators' screens
           /magna/uav_{id}/alive (std_msgs/Float64) from each manager: its heartbeat. A manager silent
           for 0.6 simulated s whose process is gone or stopped, or whose host's thread has ended
           (/uav_manager_host[_k]/ended), is lost (magna_common.liveness): a critical event names it, and its
@@ -563,6 +566,7 @@ class GroundStation:
         self.critical_events: list[CriticalEvent] = []
         self.lock = threading.Lock()
         self.critical = rospy.Publisher(GS_CRITICAL_EVENT, String, queue_size=1, latch=True)
+        self.events = rospy.Publisher(GS_CRITICAL_EVENTS, CriticalEventMsg, queue_size=100)
         self._start_utm()
         self._load_fleet()
         self.machine = build_machine(self.mission, RosStateFactory(self.services))
@@ -611,8 +615,7 @@ class GroundStation:
         """A bridge lost its vehicle in flight: a critical event for every UAV, so the mission takes its safety
         branch (the lost UAV's own autopilot holds or lands by its failsafe)."""
         rospy.logerr(f"UAV {uav_id}: MAVLink link lost: {text}")
-        with self.lock:
-            self.critical_events.append(CriticalEvent(uav_id, "link_lost", rospy.get_time(), text))
+        self._record(CriticalEvent(uav_id, "link_lost", rospy.get_time(), text))
         self.critical.publish(String(f"UAV {uav_id} MAVLink link lost: {text}"))
 
     def _on_beat(self, msg: Float64, uav_id: int) -> None:
@@ -626,8 +629,7 @@ class GroundStation:
         """A manager died or froze: a critical event for every UAV, so the mission takes its safety branch; the
         lost UAV's goals end at once (factory.MissionActionState) instead of waiting for an answer."""
         rospy.logerr(lost.describe())
-        with self.lock:
-            self.critical_events.append(CriticalEvent(lost.uav_id, MANAGER_LOST, lost.noticed_at, lost.cause))
+        self._record(CriticalEvent(lost.uav_id, MANAGER_LOST, lost.noticed_at, lost.cause))
         self.critical.publish(String(lost.describe()))
 
     def _start_utm(self) -> None:
@@ -663,11 +665,17 @@ class GroundStation:
             if req.id not in self.statuses:
                 return StateActualizationResponse(False, f"UAV {req.id} is not in this mission")
             self.statuses[req.id]["state"] = req.state
-            if req.critical_event:
-                self.critical_events.append(CriticalEvent(req.id, req.critical_event, rospy.get_time(), req.state))
         if req.critical_event:
+            self._record(CriticalEvent(req.id, req.critical_event, rospy.get_time(), req.state))
             rospy.logwarn(f"UAV {req.id}: {req.critical_event} ({req.state})")
         return StateActualizationResponse(True, "")
+
+    def _record(self, event: CriticalEvent) -> None:
+        """Keep a critical event for result.json, and say it at once on /magna/gs/critical_events (the studio)."""
+        with self.lock:
+            self.critical_events.append(event)
+        self.events.publish(CriticalEventMsg(uav_id=event.uav_id, event=event.event, sim_time=event.sim_time,
+                                             detail=event.detail))
 
     def uav_statuses(self) -> dict[int, UavStatus]:
         mavlink = self.services.mavlink

@@ -236,12 +236,14 @@ class Batch:
 
     def __init__(self, config: BatchConfig, ask: Callable[[storage.StorageConflict], str] | None = None,
                  progress: bool | None = None, out=None,
-                 on_simulation: Callable[[SimulationResult], None] | None = None):
+                 on_simulation: Callable[[SimulationResult], None] | None = None,
+                 on_start: Callable[[int, str], None] | None = None):
         self.config = config
         self.ask = ask
         self.progress = progress
         self.out = out if out is not None else sys.stderr
         self.on_simulation = on_simulation
+        self.on_start = on_start  # (simulation, its ROS master's URI) as it starts: for a watcher (--status-file)
         self.stop = _StopFlag(self.out)
         self.storage_error = ""  # why the batch stopped early for its storage (empty: it did not)
         self.cold_reasons = stack.cold_reasons(config)  # why each simulation starts cold (empty: a warm stack)
@@ -432,6 +434,7 @@ class Batch:
             return None
         result_path = work_dir / RESULT_FILE
         token = uuid.uuid4().hex
+        self._started(m, slot.stack.master_uri)
         known = self._known(m, plan, data_dir, stack={"start": "cold" if fresh else "warm",
                                                       "index": slot.stack.simulations + 1})
         request = stack.SimulationRequest(
@@ -457,6 +460,11 @@ class Batch:
         if why:
             self._stop_stack(slot)
         return result
+
+    def _started(self, m: int, master_uri: str) -> None:
+        if self.on_start is not None:
+            with self._shared:
+                self.on_start(m, master_uri)
 
     @staticmethod
     def _stop_stack(slot: JobSlot) -> None:
@@ -485,6 +493,7 @@ class Batch:
             if self.stop:
                 self._discard(work_dir, plan)
                 return None
+            self._started(m, master.uri)
             argv = self.supervisor_argv(result_path, logs, data_dir, known.to_dict(), command)
             env = dict(os.environ)
             env[TOKEN_ENV] = token
@@ -611,7 +620,8 @@ class Batch:
 
 def run_batch(config: BatchConfig, ask: Callable[[storage.StorageConflict], str] | None = None,
               progress: bool | None = None, out=None,
-              on_simulation: Callable[[SimulationResult], None] | None = None) -> BatchResult:
+              on_simulation: Callable[[SimulationResult], None] | None = None,
+              on_start: Callable[[int, str], None] | None = None) -> BatchResult:
     """Run a batch (see the module doc). Raises a UserError (BatchError, StorageError, UsageError) before
     starting anything."""
-    return Batch(config, ask=ask, progress=progress, out=out, on_simulation=on_simulation).run()
+    return Batch(config, ask=ask, progress=progress, out=out, on_simulation=on_simulation, on_start=on_start).run()

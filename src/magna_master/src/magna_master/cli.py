@@ -26,6 +26,7 @@ COMMANDS: list[tuple[str, str]] = [
     ("report", "magna_viz.report_cli"),
     ("learn", "mlr.cli"),
     ("voice", "voice.cli"),
+    ("studio", "magna_studio.cli"),
 ]
 
 

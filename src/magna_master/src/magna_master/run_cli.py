@@ -20,6 +20,7 @@ import sys
 from pathlib import Path
 
 from magna_common.cli_vocabulary import add_deprecated_flag, add_rtf, add_search_path, parse_rtf
+from magna_common.errors import UsageError
 from magna_common.storage_tree import DEFAULT_DATA_ROOT, DEFAULT_NAME
 from magna_master.storage import APPEND, DEFAULT_MIN_FREE_MB, OVERWRITE
 
@@ -114,6 +115,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--strict", action="store_true",
                         help="refuse the world or mission for what would only be a warning (what the original "
                              "ROS-MAGNA tolerated); for authors of new files")
+    parser.add_argument("--status-file", type=Path, metavar="FILE",
+                        help="keep FILE (JSON, rewritten atomically) saying how far the batch is and the ROS "
+                             "master of the running simulation, for a program that watches it (magna studio)")
     parser.add_argument("--button-timeout", type=float, default=10.0, metavar="SECONDS",
                         help="a mission's wait for the operator's button goes on after this many simulated "
                              "seconds, since nobody presses it in a batch (default 10; 0: wait for "
@@ -233,20 +237,51 @@ def check_fleet(mission_file: Path, fleet_file: Path | None, rtf: str) -> tuple[
 
 
 def run(args) -> int:
-    from magna_master.batch import run_batch
-    from magna_master.batch_summary import format_summary
     from magna_master.reports import Reports
     from magna_master.storage import ask_policy
 
     config = build_config(args)  # bad input: a UserError, which `magna` prints (exit status 2)
     ask = ask_policy if sys.stdin is not None and sys.stdin.isatty() else None
     reports = None if args.no_report or not config.save_data else Reports()
+    watched = _status_file(args, config)
+    status = 2  # a UserError on the way
+    try:
+        status = _run_batch(args, config, ask, reports, watched)
+        return status
+    finally:
+        if watched is not None:
+            watched.ended(status)
+
+
+def _status_file(args, config):
+    """The --status-file writer, or None without the option."""
+    if args.status_file is None:
+        return None
+    from magna_master.run_status import RunStatus
+
+    path = args.status_file.expanduser()
+    if not path.parent.is_dir():
+        raise UsageError(f"--status-file {path}: folder {path.parent} does not exist; create it first")
+    return RunStatus(path, config.n_iter, config.dataset_dir if config.save_data else None)
+
+
+def _run_batch(args, config, ask, reports, watched) -> int:
+    from magna_master.batch import run_batch
+    from magna_master.batch_summary import format_summary
+
+    finished = [f for f in (reports, watched.finished if watched else None) if f is not None]
+
+    def on_simulation(result) -> None:
+        for call in finished:
+            call(result)
+
     if args.cluster:
         from magna_master.cluster import run_cluster_batch
 
-        result = run_cluster_batch(config, args.cluster, ask=ask, on_simulation=reports)
+        result = run_cluster_batch(config, args.cluster, ask=ask, on_simulation=on_simulation)
     else:
-        result = run_batch(config, ask=ask, on_simulation=reports)
+        result = run_batch(config, ask=ask, on_simulation=on_simulation,
+                           on_start=watched.started if watched else None)
     print(format_summary(result), flush=True)
     if reports is not None:
         reports.wait()  # the last reports are drawn in a worker thread, and pyplot is for one thread at a time

@@ -133,6 +133,12 @@ class Stack:
         self.simulations = 0  # run on this stack so far
         self._lines: queue.Queue[str | None] = queue.Queue()
 
+    @property
+    def master_uri(self) -> str:
+        if self.master is None:
+            raise StackError("the stack is not started")
+        return self.master.uri
+
     def start(self) -> Stack:
         self.logs.mkdir(parents=True, exist_ok=True)
         self.master = RosMaster(log_dir=self.logs / "ros")

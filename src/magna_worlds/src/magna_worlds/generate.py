@@ -20,7 +20,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from magna_common.json_fields import join_path
-from magna_worlds.errors import WorldError
+from magna_worlds.errors import WorldError, WorldWarning
 from magna_worlds.model import Geometry, ObstacleSpec, PoseSetSpec, Volume, World
 from magna_worlds.posesets import (
     LayoutError,
@@ -149,7 +149,7 @@ def _check_inside_boundaries(resolved: ResolvedWorld, strict: bool) -> None:
                        "there is out of the world and aborted. Move the geometry or widen the boundaries")
             if strict:
                 raise WorldError(g.volume.source, s.spec.source_path, f"{message} (refused with --strict)")
-            resolved.warnings.append(f"{g.volume.source}: {s.spec.source_path}: {message}")
+            resolved.warnings.append(WorldWarning(g.volume.source, s.spec.source_path, message))
 
 
 def _place_geometry(volume: Volume, geometry: Geometry, seed: int) -> PlacedGeometry:

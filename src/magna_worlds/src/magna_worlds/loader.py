@@ -36,11 +36,10 @@ from magna_common.json_fields import (
     UnreadableJson,
     describe,
     join_path,
-    located,
     read_json_document,
 )
 from magna_common.search_path import find_world_file, world_candidates, world_folders
-from magna_worlds.errors import WorldError
+from magna_worlds.errors import WorldError, WorldWarning
 from magna_worlds.migrate import migrate
 from magna_worlds.model import SHAPES_FOR_ZIGZAG, Geometry, ObstacleSpec, OrientationSpec, PoseSetSpec, Volume, World
 from magna_worlds.shapes import ShapeError, half_extents, parse_shape
@@ -153,7 +152,7 @@ class _Loader:
         self.search_path = search_path
         self.strict = strict
         self.included: list[str] = []
-        self.warnings: list[str] = []
+        self.warnings: list[WorldWarning] = []
         self.changes: list[str] = []
         self._stack: list[str] = []
 
@@ -162,7 +161,7 @@ class _Loader:
         where = f.original_path(where)
         if self.strict:
             raise WorldError(f.source, where, f"{message} (refused with --strict)")
-        self.warnings.append(f"{located(f.source, where)}: {message}")
+        self.warnings.append(WorldWarning(f.source, where, message))
 
     # --- world and volumes ------------------------------------------------------------------------------------
 
