@@ -22,7 +22,7 @@ from typing import Any
 
 from magna_common.files import write_text_atomically
 from magna_common.processes import end_process_group
-from magna_common.storage_tree import check_component
+from magna_common.storage_tree import StorageError, check_component
 
 RUN_STOP_GRACE = 30.0  # s magna run may take to end its simulation in order after Ctrl-C
 LOG_LINES = 40  # last lines of magna run's output shown on the page
@@ -67,7 +67,7 @@ class RunRequest:
         name = str(body.get("name", "studio"))
         try:
             check_component(name, "name")
-        except Exception as err:  # StorageError: a name that is not one folder
+        except StorageError as err:  # a name that is not one folder
             raise RunError(str(err)) from None
         return cls(body["world"], body["mission"], n_iter, rtf, seed, name)
 
@@ -80,7 +80,7 @@ def _family_and_name(name: str, what: str) -> tuple[str, str]:
     for part in parts:
         try:
             check_component(part, f"{what} name")
-        except Exception as err:
+        except StorageError as err:
             raise RunError(str(err)) from None
     return parts[0], parts[1]
 
