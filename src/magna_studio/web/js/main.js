@@ -1,5 +1,5 @@
 // MAGNA Studio's page: the World and Mission designers in their tabs; the Run view is wired here too
-// (js/run_view.js, the lead's), from the hooks of `studio` below.
+// (js/run_view.js), from the hooks of `studio` below.
 
 import { MissionGraph } from "./mission_graph.js";
 import { MissionEditor } from "./mission_editor.js";
