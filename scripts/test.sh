@@ -30,8 +30,7 @@ step "catkin_lint" catkin_lint -W2 --strict --offline --quiet src
 step "mypy (the typed packages of pyproject.toml)" python -m mypy
 step "layers (imports go down, package.xml matches)" python scripts/import_graph.py
 if [ "${1:-}" != "--lint-only" ]; then
-  # one worker per core, each taking whole test files (a file's tests share fixtures and run in order)
-  step "pytest (unit and live-master tests)" python -m pytest -q -n auto --dist loadfile --junitxml="$results/pytest.xml"
+  step "pytest (unit and live-master tests)" python -m pytest -q --junitxml="$results/pytest.xml"
   step "catkin test (gtest and rostest)" catkin test --no-status --summarize --continue-on-failure
   step "no process left behind" no_leftovers
 fi
